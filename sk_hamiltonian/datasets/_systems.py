@@ -1,0 +1,459 @@
+"""The five Hamiltonian systems of the paper's numerical examples.
+
+Every system is a :class:`HamiltonianSystem`: the true Hamiltonian ``H``, its
+closed-form gradient, the domain ``D`` the paper samples training states from,
+the paper's test initial state ``u0*``, and the paper's learning settings.
+States are ordered ``u = (p_1, ..., p_d, q_1, ..., q_d)`` and evolve by
+``du/dt = J^{-1} grad H(u)`` with ``J = [[0, I], [-I, 0]]``.
+"""
+
+import math
+import numbers
+
+import numpy as np
+
+from .._integrate import RK4, apply_inverse_symplectic, integrate, raise_on_failure
+
+
+def _read_only(values):
+    array = np.array(values, dtype=float)
+    array.setflags(write=False)
+    return array
+
+
+class HamiltonianSystem:
+    """A known Hamiltonian system ``du/dt = J^{-1} grad H(u)``.
+
+    Parameters
+    ----------
+    name : str
+        Short name of the system.
+    hamiltonian : callable
+        ``H``, mapping an array of shape ``(..., 2 * n_dof)`` to ``(...,)``.
+    gradient : callable
+        ``grad H``, mapping ``(..., 2 * n_dof)`` to ``(..., 2 * n_dof)``.
+    domain : array-like of shape (2 * n_dof, 2)
+        One ``(low, high)`` row per state component, ``p`` before ``q``.
+    initial_state : array-like of shape (2 * n_dof,)
+        The test initial state ``u0*``.
+    paper_settings : dict, default=None
+        The paper's learning settings for this system.
+    params : dict, default=None
+        Physical parameters, shown in the representation.
+
+    Attributes
+    ----------
+    n_dof : int
+        Number of degrees of freedom ``d``; states have ``2 * d`` components.
+    domain : ndarray of shape (2 * n_dof, 2)
+        Read-only copy of ``domain``.
+    initial_state : ndarray of shape (2 * n_dof,)
+        Read-only copy of ``initial_state``.
+    paper_settings : dict
+        Keys ``degree`` (``n``), ``n_trajectories`` (``M``), ``n_intervals``
+        (``J``) and ``noise``, plus ``t_final`` where the paper gives one.
+    params : dict
+        Physical parameters.
+
+    Examples
+    --------
+    >>> from sk_hamiltonian.datasets import load_system
+    >>> system = load_system("henon_heiles")
+    >>> system.n_dof
+    2
+    >>> system.vector_field([0.0, 0.0, 1.0, 0.0])
+    array([-1., -1.,  0.,  0.])
+    """
+
+    def __init__(
+        self, name, hamiltonian, gradient, domain, initial_state, paper_settings=None,
+        params=None,
+    ):
+        domain = _read_only(domain)
+        if domain.ndim != 2 or domain.shape[1] != 2 or domain.shape[0] % 2:
+            raise ValueError(
+                f"domain must have shape (2 * n_dof, 2), got {domain.shape}."
+            )
+        initial_state = _read_only(initial_state)
+        if initial_state.shape != (domain.shape[0],):
+            raise ValueError(
+                f"initial_state must have shape ({domain.shape[0]},) to match the "
+                f"domain, got {initial_state.shape}."
+            )
+        self.name = name
+        self.n_dof = domain.shape[0] // 2
+        self.domain = domain
+        self.initial_state = initial_state
+        self.paper_settings = dict(paper_settings or {})
+        self.params = dict(params or {})
+        self._hamiltonian = hamiltonian
+        self._gradient = gradient
+
+    def __repr__(self):
+        fields = [f"name={self.name!r}", f"n_dof={self.n_dof}"]
+        fields += [f"{key}={value!r}" for key, value in self.params.items()]
+        return f"HamiltonianSystem({', '.join(fields)})"
+
+    def _check_states(self, X, name="X"):
+        X = np.asarray(X, dtype=float)
+        if X.ndim == 0 or X.shape[-1] != 2 * self.n_dof:
+            raise ValueError(
+                f"{name} must have shape (..., {2 * self.n_dof}) for the {self.name} "
+                f"system (p_1..p_d, q_1..q_d), got {X.shape}."
+            )
+        return X
+
+    def hamiltonian(self, X):
+        """Evaluate the true Hamiltonian.
+
+        Parameters
+        ----------
+        X : array-like of shape (..., 2 * n_dof)
+            States ``(p, q)``.
+
+        Returns
+        -------
+        H : ndarray of shape (...,)
+            ``H(X)``.
+        """
+        return self._hamiltonian(self._check_states(X))
+
+    def gradient(self, X):
+        """Evaluate the closed-form gradient of the Hamiltonian.
+
+        Parameters
+        ----------
+        X : array-like of shape (..., 2 * n_dof)
+            States ``(p, q)``.
+
+        Returns
+        -------
+        grad : ndarray of shape (..., 2 * n_dof)
+            ``(dH/dp, dH/dq)`` at ``X``.
+        """
+        return self._gradient(self._check_states(X))
+
+    def vector_field(self, X):
+        """Evaluate Hamilton's equations ``J^{-1} grad H``.
+
+        Parameters
+        ----------
+        X : array-like of shape (..., 2 * n_dof)
+            States ``(p, q)``.
+
+        Returns
+        -------
+        dXdt : ndarray of shape (..., 2 * n_dof)
+            ``(dp/dt, dq/dt) = (-dH/dq, dH/dp)`` at ``X``.
+        """
+        return apply_inverse_symplectic(self.gradient(X))
+
+    def solve(self, x0, t, max_step=None):
+        """Reference solution by the classical Runge-Kutta method (RK4).
+
+        Parameters
+        ----------
+        x0 : array-like of shape (2 * n_dof,) or (n_states, 2 * n_dof)
+            Initial state(s), taken at time ``t[0]``.
+        t : array-like of shape (n_times,)
+            Strictly increasing output times.
+        max_step : float, default=None
+            Largest RK4 step. None uses a hundredth of the smallest interval
+            of ``t``, fine enough that the reference error is far below any
+            learning error (the paper used a ten-thousandth).
+
+        Returns
+        -------
+        X : ndarray of shape (n_times, 2 * n_dof) or (n_states, n_times, 2 * n_dof)
+            The solution at ``t``, with one leading axis per initial state if
+            ``x0`` is 2-D.
+
+        Raises
+        ------
+        SimulationError
+            If a solution becomes non-finite (it blows up in finite time).
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from sk_hamiltonian.datasets import load_system
+        >>> system = load_system("single_pendulum")
+        >>> system.solve(system.initial_state, np.linspace(0, 1, 11)).shape
+        (11, 2)
+        """
+        t = np.asarray(t, dtype=float)
+        if t.ndim != 1 or t.shape[0] < 1 or not np.all(np.isfinite(t)):
+            raise ValueError(
+                f"t must be a non-empty 1-D array of finite times, got shape {t.shape}."
+            )
+        if np.any(np.diff(t) <= 0):
+            raise ValueError("t must be strictly increasing; sort it and drop repeats.")
+        x0 = np.asarray(x0, dtype=float)
+        if x0.ndim not in (1, 2) or x0.shape[-1] != 2 * self.n_dof:
+            raise ValueError(
+                f"x0 must have shape ({2 * self.n_dof},) or (n_states, {2 * self.n_dof}) "
+                f"for the {self.name} system, got {x0.shape}."
+            )
+        if not np.all(np.isfinite(x0)):
+            raise ValueError("x0 must be finite; it contains NaN or infinity.")
+        if max_step is None:
+            max_step = np.diff(t).min() / 100.0 if t.shape[0] > 1 else None
+        elif not (isinstance(max_step, numbers.Real) and 0 < max_step < math.inf):
+            raise ValueError(f"max_step must be a positive finite number, got {max_step!r}.")
+        fun = lambda y: apply_inverse_symplectic(self._gradient(y))  # noqa: E731
+        y, failed_at = integrate(RK4(fun), np.atleast_2d(x0), t, max_step=max_step)
+        raise_on_failure(failed_at, t, what=f"the true {self.name} system")
+        y = np.swapaxes(y, 0, 1)
+        return y[0] if x0.ndim == 1 else y
+
+
+def _split(X):
+    d = X.shape[-1] // 2
+    return X[..., :d], X[..., d:]
+
+
+def _check_positive(**values):
+    for name, value in values.items():
+        if not (isinstance(value, numbers.Real) and 0 < value < math.inf):
+            raise ValueError(f"{name} must be a positive finite number, got {value!r}.")
+
+
+def single_pendulum(length=1.0, g=9.8):
+    """Example 1: ideal single pendulum with unit mass.
+
+    ``H(p, q) = p**2 / (2 l**2) + g l (1 - cos q)``.
+
+    Parameters
+    ----------
+    length : float, default=1.0
+        Length ``l`` of the pendulum.
+    g : float, default=9.8
+        Gravitational constant.
+
+    Returns
+    -------
+    system : HamiltonianSystem
+        Domain ``(-2 pi, 2 pi) x (-pi, pi)``, ``u0* = (-3.876, -1.193)``.
+    """
+    _check_positive(length=length, g=g)
+
+    def hamiltonian(X):
+        p, q = X[..., 0], X[..., 1]
+        return p**2 / (2 * length**2) + g * length * (1 - np.cos(q))
+
+    def gradient(X):
+        p, q = _split(X)
+        return np.concatenate([p / length**2, g * length * np.sin(q)], axis=-1)
+
+    return HamiltonianSystem(
+        "single_pendulum", hamiltonian, gradient,
+        domain=[[-2 * np.pi, 2 * np.pi], [-np.pi, np.pi]],
+        initial_state=[-3.876, -1.193],
+        paper_settings=dict(degree=6, n_trajectories=500, n_intervals=40, noise=0.08),
+        params=dict(length=length, g=g),
+    )
+
+
+def exponential(alpha1=1.0, alpha2=1.1):
+    """Example 2: ``H(p, q) = exp(-alpha1 p**2 - alpha2 q**4)``.
+
+    Parameters
+    ----------
+    alpha1 : float, default=1.0
+        Coefficient of ``p**2``.
+    alpha2 : float, default=1.1
+        Coefficient of ``q**4``.
+
+    Returns
+    -------
+    system : HamiltonianSystem
+        Domain ``[-1, 1]**2``, ``u0* = (0.6, 0.6)``.
+    """
+    _check_positive(alpha1=alpha1, alpha2=alpha2)
+
+    def hamiltonian(X):
+        p, q = X[..., 0], X[..., 1]
+        return np.exp(-alpha1 * p**2 - alpha2 * q**4)
+
+    def gradient(X):
+        p, q = _split(X)
+        h = np.exp(-alpha1 * p**2 - alpha2 * q**4)
+        return np.concatenate([-2 * alpha1 * p * h, -4 * alpha2 * q**3 * h], axis=-1)
+
+    return HamiltonianSystem(
+        "exponential", hamiltonian, gradient,
+        domain=[[-1.0, 1.0]] * 2,
+        initial_state=[0.6, 0.6],
+        paper_settings=dict(degree=6, n_trajectories=300, n_intervals=2, noise=0.0),
+        params=dict(alpha1=alpha1, alpha2=alpha2),
+    )
+
+
+def henon_heiles():
+    """Example 3: the Henon-Heiles system.
+
+    ``H = (p1**2 + p2**2) / 2 + (q1**2 + q2**2) / 2 + q1**2 q2 - q2**3 / 3``.
+
+    Returns
+    -------
+    system : HamiltonianSystem
+        Domain ``[-1, 1]**4``, ``u0* = (0.3, -0.25, 0.2, -0.25)``.
+    """
+
+    def hamiltonian(X):
+        p1, p2, q1, q2 = np.moveaxis(X, -1, 0)
+        return 0.5 * (p1**2 + p2**2 + q1**2 + q2**2) + q1**2 * q2 - q2**3 / 3
+
+    def gradient(X):
+        p1, p2, q1, q2 = np.moveaxis(X, -1, 0)
+        return np.stack([p1, p2, q1 + 2 * q1 * q2, q2 + q1**2 - q2**2], axis=-1)
+
+    return HamiltonianSystem(
+        "henon_heiles", hamiltonian, gradient,
+        domain=[[-1.0, 1.0]] * 4,
+        initial_state=[0.3, -0.25, 0.2, -0.25],
+        paper_settings=dict(degree=3, n_trajectories=500, n_intervals=2, noise=0.0),
+    )
+
+
+def cherry():
+    """Example 4: Cherry's system, whose solutions can blow up in finite time.
+
+    ``H = (q1**2 + p1**2) / 2 - (q2**2 + p2**2) + p2 (p1**2 - q1**2) / 2 - q1 q2 p1``.
+
+    Returns
+    -------
+    system : HamiltonianSystem
+        Domain ``(-2, 2) x (-1, 2) x (-2, 1) x (-1, 1)``,
+        ``u0* = (-0.05, 0.1, 0.15, 0.1)``. The true solution from ``u0*``
+        blows up near ``t = 27.9``.
+    """
+
+    def hamiltonian(X):
+        p1, p2, q1, q2 = np.moveaxis(X, -1, 0)
+        return (
+            0.5 * (q1**2 + p1**2) - (q2**2 + p2**2) + 0.5 * p2 * (p1**2 - q1**2)
+            - q1 * q2 * p1
+        )
+
+    def gradient(X):
+        p1, p2, q1, q2 = np.moveaxis(X, -1, 0)
+        return np.stack(
+            [
+                p1 + p2 * p1 - q1 * q2,
+                -2 * p2 + 0.5 * (p1**2 - q1**2),
+                q1 - p2 * q1 - q2 * p1,
+                -2 * q2 - q1 * p1,
+            ],
+            axis=-1,
+        )
+
+    return HamiltonianSystem(
+        "cherry", hamiltonian, gradient,
+        domain=[[-2.0, 2.0], [-1.0, 2.0], [-2.0, 1.0], [-1.0, 1.0]],
+        initial_state=[-0.05, 0.1, 0.15, 0.1],
+        paper_settings=dict(degree=3, n_trajectories=500, n_intervals=2, noise=0.0),
+    )
+
+
+def double_pendulum(m1=1.0, m2=1.0, l1=1.0, l2=1.0, g=9.8):
+    """Example 5: double pendulum in angles and canonical momenta.
+
+    With ``s = q1 - q2`` and ``D(s) = m1 + m2 sin(s)**2``::
+
+        H = N / (2 m2 l1**2 l2**2 D) - (m1 + m2) g l1 cos q1 - m2 g l2 cos q2,
+        N = m2 l2**2 p1**2 + (m1 + m2) l1**2 p2**2 - 2 m2 l1 l2 p1 p2 cos s.
+
+    Parameters
+    ----------
+    m1, m2 : float, default=1.0
+        Masses of the inner and outer bob.
+    l1, l2 : float, default=1.0
+        Lengths of the inner and outer rod.
+    g : float, default=9.8
+        Gravitational constant.
+
+    Returns
+    -------
+    system : HamiltonianSystem
+        Domain ``(-5, 5) x (-4, 4) x (-1, 1) x (-1, 1)``,
+        ``u0* = (0, 0, pi/6, pi/4)``, simulated up to ``t = 20`` in the paper.
+    """
+    _check_positive(m1=m1, m2=m2, l1=l1, l2=l2, g=g)
+    M = m1 + m2
+
+    def kinetic_parts(X):
+        p1, p2, q1, q2 = np.moveaxis(X, -1, 0)
+        s = q1 - q2
+        cos_s, sin_s = np.cos(s), np.sin(s)
+        D = m1 + m2 * sin_s**2
+        N = m2 * l2**2 * p1**2 + M * l1**2 * p2**2 - 2 * m2 * l1 * l2 * p1 * p2 * cos_s
+        return p1, p2, q1, q2, cos_s, sin_s, D, N
+
+    def hamiltonian(X):
+        p1, p2, q1, q2, _, _, D, N = kinetic_parts(X)
+        kinetic = N / (2 * m2 * l1**2 * l2**2 * D)
+        return kinetic - M * g * l1 * np.cos(q1) - m2 * g * l2 * np.cos(q2)
+
+    def gradient(X):
+        p1, p2, q1, q2, cos_s, sin_s, D, N = kinetic_parts(X)
+        # The kinetic energy depends on q only through s, so its q1- and
+        # q2-derivatives are +dT/ds and -dT/ds; dD/ds = m2 sin(2s).
+        dT_ds = p1 * p2 * sin_s / (l1 * l2 * D) - N * 2 * sin_s * cos_s / (
+            2 * l1**2 * l2**2 * D**2
+        )
+        dH_dp1 = (l2 * p1 - l1 * p2 * cos_s) / (l1**2 * l2 * D)
+        dH_dp2 = (M * l1 * p2 - m2 * l2 * p1 * cos_s) / (m2 * l1 * l2**2 * D)
+        dH_dq1 = M * g * l1 * np.sin(q1) + dT_ds
+        dH_dq2 = m2 * g * l2 * np.sin(q2) - dT_ds
+        return np.stack([dH_dp1, dH_dp2, dH_dq1, dH_dq2], axis=-1)
+
+    return HamiltonianSystem(
+        "double_pendulum", hamiltonian, gradient,
+        domain=[[-5.0, 5.0], [-4.0, 4.0], [-1.0, 1.0], [-1.0, 1.0]],
+        initial_state=[0.0, 0.0, np.pi / 6, np.pi / 4],
+        paper_settings=dict(
+            degree=15, n_trajectories=20000, n_intervals=2, noise=0.0, t_final=20.0
+        ),
+        params=dict(m1=m1, m2=m2, l1=l1, l2=l2, g=g),
+    )
+
+
+#: The paper's five systems by name; values are the factories.
+SYSTEMS = {
+    "single_pendulum": single_pendulum,
+    "exponential": exponential,
+    "henon_heiles": henon_heiles,
+    "cherry": cherry,
+    "double_pendulum": double_pendulum,
+}
+
+
+def load_system(name, **params):
+    """Build one of the paper's systems by name.
+
+    Parameters
+    ----------
+    name : str
+        A key of :data:`SYSTEMS`: ``"single_pendulum"``, ``"exponential"``,
+        ``"henon_heiles"``, ``"cherry"`` or ``"double_pendulum"``.
+    **params
+        Physical parameters passed to the factory, e.g. ``length`` for the
+        single pendulum.
+
+    Returns
+    -------
+    system : HamiltonianSystem
+        The system.
+
+    Examples
+    --------
+    >>> from sk_hamiltonian.datasets import load_system
+    >>> load_system("single_pendulum", length=2.0)
+    HamiltonianSystem(name='single_pendulum', n_dof=1, length=2.0, g=9.8)
+    """
+    if not isinstance(name, str) or name not in SYSTEMS:
+        raise ValueError(
+            f"Unknown system {name!r}; valid names are {sorted(SYSTEMS)}."
+        )
+    return SYSTEMS[name](**params)
