@@ -1,3 +1,23 @@
-"""Structure-preserving learning of unknown Hamiltonian systems from trajectories."""
+"""Structure-preserving learning of unknown Hamiltonian systems from trajectories.
+
+The estimators follow Wu, Qin & Xiu, "Structure-preserving method for
+reconstructing unknown Hamiltonian systems from trajectory data".
+"""
+
+from ._derivatives import DerivativeTransformer
+from ._hamiltonian import HamiltonianRegressor
+from ._trajectories import unpack_derivatives
+from ._vector_field import VectorFieldRegressor
+from .exceptions import DomainWarning, IllConditionedWarning, SimulationError
 
 __version__ = "0.1.0"
+
+__all__ = [
+    "DerivativeTransformer",
+    "DomainWarning",
+    "HamiltonianRegressor",
+    "IllConditionedWarning",
+    "SimulationError",
+    "VectorFieldRegressor",
+    "unpack_derivatives",
+]

@@ -4,14 +4,7 @@ import math
 
 import numpy as np
 
-
-class SimulationError(RuntimeError):
-    """Raised when a trajectory cannot be continued.
-
-    The state became non-finite (the model or the reference system blew up), or an
-    implicit step could not be solved. The message gives the time at which it
-    happened and how to avoid it.
-    """
+from ..exceptions import SimulationError
 
 
 class FixedStepIntegrator:

@@ -1,0 +1,184 @@
+"""The trajectory data model and the layout that carries time derivatives.
+
+Trajectories are a 3-D array ``(n_trajectories, n_times, n_states)`` or a list
+of 2-D arrays ``(n_times_k, n_states)``; one sample is one trajectory, so every
+scikit-learn splitter splits whole trajectories. ``n_states = 2d`` is even and
+ordered as ``(p_1..p_d, q_1..q_d)``.
+
+:class:`~sk_hamiltonian.DerivativeTransformer` returns the same container with a
+wider last axis, the *derivative layout*::
+
+    [ t | states (n_states) | time derivatives (n_states) | observed (n_states) ]
+
+``states`` are what the regressor is fitted on (the smoothed states when
+de-noising, the observations otherwise); ``observed`` are the raw observations
+and ``t`` their time stamps, which the regressors' ``score`` compares rollouts
+against. Carrying them through the pipeline keeps the default cross-validation
+score independent of the derivative estimate being tuned.
+"""
+
+from collections import namedtuple
+
+import numpy as np
+
+DerivativeData = namedtuple("DerivativeData", ["times", "states", "derivatives", "observed"])
+DerivativeData.__doc__ = """Fields of the derivative layout.
+
+Each field is a 3-D array (or a list of 2-D arrays, one per trajectory, when the
+layout was a list); ``times`` has a last axis of length 1 dropped, so it is 2-D
+(or a list of 1-D arrays).
+"""
+
+
+def layout_width(n_states):
+    """Width of the last axis of the derivative layout."""
+    return 1 + 3 * n_states
+
+
+def check_trajectories(X, *, name="X", min_times=1):
+    """Validate trajectories and return them as a list of float arrays.
+
+    Parameters
+    ----------
+    X : array-like of shape (n_trajectories, n_times, n_features) or list of 2-D arrays
+        The trajectories.
+    name : str, default="X"
+        Argument name used in error messages.
+    min_times : int, default=1
+        Fewest samples a trajectory may have.
+
+    Returns
+    -------
+    trajectories : list of ndarray of shape (n_times_k, n_features)
+    is_array : bool
+        Whether ``X`` was a single 3-D array (rather than a list).
+    """
+    if hasattr(X, "tocsr") or hasattr(X, "toarray"):
+        raise TypeError(
+            f"{name} is a sparse matrix; trajectories must be dense arrays of shape "
+            f"(n_trajectories, n_times, n_features)."
+        )
+    if isinstance(X, np.ndarray) or not isinstance(X, (list, tuple)):
+        array = np.asarray(X)
+        if array.ndim != 3:
+            raise ValueError(
+                f"{name} must be a 3-D array (n_trajectories, n_times, n_features) "
+                f"or a list of 2-D arrays (n_times, n_features); got an array of shape "
+                f"{array.shape}. For a single trajectory T of shape (n_times, "
+                f"n_features), pass T[np.newaxis] or [T]."
+            )
+        trajectories, is_array = list(_as_float(array, name)), True
+    else:
+        trajectories, is_array = [], False
+        for k, item in enumerate(X):
+            item = _as_float(np.asarray(item), f"{name}[{k}]")
+            if item.ndim != 2:
+                raise ValueError(
+                    f"{name}[{k}] must be a 2-D array (n_times, n_features); got shape "
+                    f"{item.shape}."
+                )
+            trajectories.append(item)
+    if not trajectories:
+        raise ValueError(f"{name} holds no trajectory; at least one is required.")
+    widths = {T.shape[1] for T in trajectories}
+    if len(widths) > 1:
+        raise ValueError(
+            f"The trajectories in {name} have different numbers of features "
+            f"{sorted(widths)}; all must have the same."
+        )
+    shortest = min(T.shape[0] for T in trajectories)
+    if shortest < min_times:
+        raise ValueError(
+            f"A trajectory in {name} has {shortest} sample(s); at least {min_times} "
+            f"are required."
+        )
+    for k, T in enumerate(trajectories):
+        if not np.isfinite(T).all():
+            raise ValueError(
+                f"{name}[{k}] contains NaN or infinity; remove or interpolate those "
+                f"samples first."
+            )
+    return trajectories, is_array
+
+
+def check_n_states(n_states, name="X"):
+    """Raise if a state dimension is not even and positive."""
+    if n_states < 2 or n_states % 2:
+        raise ValueError(
+            f"The state dimension of {name} is {n_states}, but a Hamiltonian system "
+            f"has an even number of states (p_1..p_d, q_1..q_d). Check the last axis "
+            f"of {name}."
+        )
+
+
+def _as_float(array, name):
+    if array.dtype == object or not (
+        np.issubdtype(array.dtype, np.number) or array.dtype == bool
+    ):
+        raise ValueError(f"{name} must be numeric; got dtype {array.dtype}.")
+    if np.iscomplexobj(array):
+        raise ValueError(f"{name} must be real; got complex values.")
+    return array.astype(float, copy=False)
+
+
+def pack_derivatives(times, states, derivatives, observed, as_array):
+    """Assemble the derivative layout from per-trajectory pieces."""
+    packed = [
+        np.column_stack([t, s, d, o])
+        for t, s, d, o in zip(times, states, derivatives, observed)
+    ]
+    return np.stack(packed) if as_array else packed
+
+
+def unpack_derivatives(Xt):
+    """Split the output of :class:`~sk_hamiltonian.DerivativeTransformer`.
+
+    Parameters
+    ----------
+    Xt : ndarray of shape (n_trajectories, n_times, 1 + 3 * n_states) or list
+        The derivative layout.
+
+    Returns
+    -------
+    data : DerivativeData
+        Named tuple ``(times, states, derivatives, observed)`` holding arrays of
+        shapes ``(n_trajectories, n_times)`` and ``(n_trajectories, n_times,
+        n_states)`` (lists of per-trajectory arrays when ``Xt`` is a list).
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from sk_hamiltonian import DerivativeTransformer, unpack_derivatives
+    >>> X = np.random.default_rng(0).normal(size=(3, 10, 2))
+    >>> Xt = DerivativeTransformer(dt=0.1, method="finite_difference").fit_transform(X)
+    >>> unpack_derivatives(Xt).derivatives.shape
+    (3, 10, 2)
+    """
+    trajectories, is_array = check_trajectories(Xt, name="Xt")
+    width = trajectories[0].shape[1]
+    n_states, remainder = divmod(width - 1, 3)
+    if remainder or n_states < 2 or n_states % 2:
+        hint = (
+            " It looks like raw trajectories: pass them through "
+            "DerivativeTransformer first, or fit on 2-D states X with their time "
+            "derivatives y."
+            if width % 2 == 0
+            else ""
+        )
+        raise ValueError(
+            f"Expected the derivative layout of DerivativeTransformer, whose last "
+            f"axis has 1 + 3 * n_states entries [t, states, derivatives, observed] "
+            f"with n_states even; got {width}.{hint}"
+        )
+    s = slice(1, 1 + n_states)
+    d = slice(1 + n_states, 1 + 2 * n_states)
+    o = slice(1 + 2 * n_states, width)
+    if is_array:
+        A = np.stack(trajectories)
+        return DerivativeData(A[..., 0], A[..., s], A[..., d], A[..., o])
+    return DerivativeData(
+        [T[:, 0] for T in trajectories],
+        [T[:, s] for T in trajectories],
+        [T[:, d] for T in trajectories],
+        [T[:, o] for T in trajectories],
+    )

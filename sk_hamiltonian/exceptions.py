@@ -1,0 +1,27 @@
+"""Errors and warnings raised by sk_hamiltonian."""
+
+
+class SimulationError(RuntimeError):
+    """A trajectory could not be continued.
+
+    The state became non-finite (the model or the reference system blew up), or
+    an implicit step could not be solved. The message gives the time at which it
+    happened and how to avoid it.
+    """
+
+
+class DomainWarning(UserWarning):
+    """Points lie outside the box the model was fitted on.
+
+    A polynomial model is only trusted inside its domain; outside, Legendre
+    polynomials grow like ``|x|**degree`` and predictions degrade quickly.
+    """
+
+
+class IllConditionedWarning(UserWarning):
+    """The least-squares problem is close to singular.
+
+    Usually the data do not cover the domain (for example a few long trajectories
+    in a high-degree space); more trajectories, a smaller ``domain`` or a lower
+    ``degree`` help.
+    """
