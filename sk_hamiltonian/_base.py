@@ -11,7 +11,7 @@ from sklearn.utils.validation import check_is_fitted, validate_data
 
 from ._integrate import integrate, raise_on_failure
 from ._solvers import choose_solver, warn_if_ill_conditioned
-from ._trajectories import check_n_states, unpack_derivatives
+from ._trajectories import unpack_derivatives
 from .exceptions import DomainWarning
 
 # Rollouts in ``score`` subdivide each sampling interval so that integration
@@ -92,21 +92,18 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
             X = np.concatenate(list(data.states))
             y = np.concatenate(list(data.derivatives))
         X, y = validate_data(self, X, y, multi_output=True, y_numeric=True)
-        check_n_states(X.shape[1])
-        if y.ndim != 2 or y.shape != X.shape:
-            raise ValueError(
-                f"y must hold the time derivative of every state variable, with the "
-                f"same shape as X {X.shape}; got shape {y.shape}."
-            )
-        self.domain_ = self._fit_domain(X)
-        self.solver_ = choose_solver(self.solver, *self._design_shape(X.shape[0], X.shape[1]))
+        self._check_dimensions(X)
         n_rows, n_terms = self._design_shape(X.shape[0], X.shape[1])
         if n_rows < n_terms:
             raise ValueError(
-                f"{n_rows} equations for {n_terms} unknowns at degree={self.degree}: "
-                f"the least-squares problem is underdetermined. Provide more samples "
-                f"(more or longer trajectories) or lower `degree`."
+                f"X has n_samples={X.shape[0]}, which gives {n_rows} equations for "
+                f"{n_terms} unknowns at degree={self.degree}: the least-squares problem "
+                f"is underdetermined. Provide more samples (more or longer "
+                f"trajectories) or lower `degree`."
             )
+        self._check_targets(X, y)
+        self.domain_ = self._fit_domain(X)
+        self.solver_ = choose_solver(self.solver, n_rows, n_terms)
         self._fit_coef(X, y)
         warn_if_ill_conditioned(self.cond_, self.rank_, n_terms, type(self).__name__)
         self.n_terms_ = int(np.size(self.coef_))
@@ -186,7 +183,7 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
             if isinstance(states, np.ndarray):
                 return self.predict(states.reshape(-1, states.shape[-1])).reshape(states.shape)
             return [self.predict(s) for s in states]
-        X, _ = self._check_states(X)
+        X = validate_data(self, X, reset=False)
         self._warn_outside(X)
         return self._vector_field(X)
 
@@ -271,6 +268,12 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
         check_is_fitted(self)
         errors = rollout_errors(self, X)
         return float(1.0 - np.average(np.minimum(errors, 1.0), weights=sample_weight))
+
+    def _check_dimensions(self, X):
+        """Hook: reject state dimensions the model cannot handle."""
+
+    def _check_targets(self, X, y):
+        """Hook: reject targets that are not time derivatives of X."""
 
     def _design_shape(self, n_samples, n_states):
         raise NotImplementedError

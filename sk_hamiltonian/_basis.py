@@ -82,11 +82,24 @@ def map_to_window(X, domain):
     return (2.0 * X - (low + high)) / (high - low)
 
 
+def legendre_derivative_matrix(degree):
+    """Matrix ``D`` with ``P'_n = sum_k D[k, n] P_k``, for ``n <= degree``.
+
+    From ``P'_{k+1} = P'_{k-1} + (2k + 1) P_k``: ``D[k, n] = 2k + 1`` when
+    ``k < n`` and ``n - k`` is odd.
+    """
+    k = np.arange(degree + 1)[:, None]
+    n = np.arange(degree + 1)[None, :]
+    return np.where((k < n) & ((n - k) % 2 == 1), 2.0 * k + 1.0, 0.0)
+
+
 def legendre_tables(xi, degree, n_derivatives=1):
     """Legendre polynomials and their derivatives at every coordinate.
 
-    Uses the three-term recurrence ``(k + 1) P_{k+1} = (2k + 1) x P_k - k P_{k-1}``
-    and ``P'_{k+1} = P'_{k-1} + (2k + 1) P_k`` (likewise for ``P''``).
+    Values come from the three-term recurrence
+    ``(k + 1) P_{k+1} = (2k + 1) x P_k - k P_{k-1}``, derivatives from the
+    values through :func:`legendre_derivative_matrix` (one product per order,
+    which keeps the cost per call low for small batches).
 
     Parameters
     ----------
@@ -102,36 +115,40 @@ def legendre_tables(xi, degree, n_derivatives=1):
     tables : list of ndarray of shape (n_samples, n_features, degree + 1)
         ``tables[r][..., k]`` is the ``r``-th derivative of ``P_k``.
     """
-    tables = [np.zeros(xi.shape + (degree + 1,)) for _ in range(n_derivatives + 1)]
-    value = tables[0]
-    value[..., 0] = 1.0
+    # Degree first, so that every step of the recurrence works on contiguous rows.
+    value = np.empty((degree + 1,) + xi.shape)
+    value[0] = 1.0
     if degree >= 1:
-        value[..., 1] = xi
+        value[1] = xi
     for k in range(1, degree):
-        value[..., k + 1] = ((2 * k + 1) * xi * value[..., k] - k * value[..., k - 1]) / (k + 1)
-    for r in range(1, n_derivatives + 1):
-        lower, this = tables[r - 1], tables[r]
-        for k in range(degree):
-            this[..., k + 1] = (2 * k + 1) * lower[..., k]
-            if k >= 1:
-                this[..., k + 1] += this[..., k - 1]
+        value[k + 1] = ((2 * k + 1) / (k + 1)) * xi * value[k] - (k / (k + 1)) * value[k - 1]
+    tables = [np.moveaxis(value, 0, -1)]
+    if n_derivatives:
+        D = legendre_derivative_matrix(degree)
+        for _ in range(n_derivatives):
+            tables.append(tables[-1] @ D)
     return tables
 
 
 def _factors(X, domain, powers, n_derivatives):
-    """Per-variable factors ``P^{(r)}_{powers[j, i]}(xi_i)`` of each basis function."""
+    """Per-variable factors of each basis function, gathered in one indexing.
+
+    Returns a list over derivative orders ``r`` of arrays of shape
+    ``(n_samples, n_terms, n_features)`` holding ``P^{(r)}_{powers[j, i]}(xi_i)``.
+    """
     xi = map_to_window(X, domain)
     tables = legendre_tables(xi, int(powers.max(initial=0)), n_derivatives)
     columns = np.arange(X.shape[1])
-    # factors[r][i] has shape (n_samples, n_terms): r-th derivative along variable i.
-    return [[table[:, i, powers[:, i]] for i in columns] for table in tables]
+    return [table[:, columns, powers] for table in tables]
 
 
-def _product(arrays, n_samples, n_terms):
-    out = np.ones((n_samples, n_terms))
-    for a in arrays:
-        out *= a
-    return out
+def _products_but_one(F):
+    """``prod_{l != i} F[..., l]`` for every ``i``, without dividing by ``F``."""
+    left = np.ones_like(F)
+    right = np.ones_like(F)
+    np.cumprod(F[..., :-1], axis=-1, out=left[..., 1:])
+    right[..., :-1] = np.cumprod(F[..., :0:-1], axis=-1)[..., ::-1]
+    return left * right
 
 
 def value_matrix(X, domain, powers):
@@ -152,7 +169,7 @@ def value_matrix(X, domain, powers):
         ``V[k, j] = phi_j(X[k])``.
     """
     (values,) = _factors(X, domain, powers, 0)
-    return _product(values, X.shape[0], powers.shape[0])
+    return values.prod(axis=-1)
 
 
 def gradient_matrix(X, domain, powers):
@@ -173,19 +190,36 @@ def gradient_matrix(X, domain, powers):
         ``G[k, i, j]`` is the derivative of ``phi_j`` along variable ``i`` at
         ``X[k]``, in the original (unmapped) coordinates.
     """
-    n, m = X.shape
+    return np.moveaxis(_gradient_factors(X, domain, powers), -1, 1)
+
+
+def gradient_dot(X, domain, powers, coef):
+    """Gradient of ``sum_j coef[j] phi_j`` at each point.
+
+    Parameters
+    ----------
+    X : ndarray of shape (n_samples, n_features)
+        Points.
+    domain : ndarray of shape (n_features, 2)
+        The box the basis is defined on.
+    powers : ndarray of shape (n_terms, n_features)
+        Multi-indices.
+    coef : ndarray of shape (n_terms,)
+        Expansion coefficients.
+
+    Returns
+    -------
+    grad : ndarray of shape (n_samples, n_features)
+        Gradients in the original coordinates.
+    """
+    return np.einsum("skm,k->sm", _gradient_factors(X, domain, powers), coef)
+
+
+def _gradient_factors(X, domain, powers):
+    """``d phi_j / d x_i`` laid out as ``(n_samples, n_terms, n_features)``."""
     values, slopes = _factors(X, domain, powers, 1)
     chain = 2.0 / (domain[:, 1] - domain[:, 0])
-    # Prefix and suffix products avoid dividing by factors that may be zero.
-    prefix = [np.ones((n, powers.shape[0]))]
-    for i in range(m - 1):
-        prefix.append(prefix[-1] * values[i])
-    G = np.empty((n, m, powers.shape[0]))
-    suffix = np.ones((n, powers.shape[0]))
-    for i in reversed(range(m)):
-        G[:, i] = prefix[i] * suffix * slopes[i] * chain[i]
-        suffix = suffix * values[i]
-    return G
+    return _products_but_one(values) * slopes * chain
 
 
 def hessian_dot(X, domain, powers, coef):
@@ -207,18 +241,17 @@ def hessian_dot(X, domain, powers, coef):
     hess : ndarray of shape (n_samples, n_features, n_features)
         Symmetric Hessian matrices in the original coordinates.
     """
-    n, m = X.shape
-    n_terms = powers.shape[0]
+    m = X.shape[1]
     values, slopes, curvatures = _factors(X, domain, powers, 2)
     chain = 2.0 / (domain[:, 1] - domain[:, 0])
-    hess = np.empty((n, m, m))
+    hess = np.empty((X.shape[0], m, m))
     for i in range(m):
         for j in range(i, m):
+            parts = values.copy()
             if i == j:
-                parts = [curvatures[i]] + [values[k] for k in range(m) if k != i]
+                parts[..., i] = curvatures[..., i]
             else:
-                parts = [slopes[i], slopes[j]] + [values[k] for k in range(m) if k not in (i, j)]
-            hess[:, i, j] = hess[:, j, i] = (_product(parts, n, n_terms) @ coef) * (
-                chain[i] * chain[j]
-            )
+                parts[..., i] = slopes[..., i]
+                parts[..., j] = slopes[..., j]
+            hess[:, i, j] = hess[:, j, i] = (parts.prod(axis=-1) @ coef) * (chain[i] * chain[j])
     return hess

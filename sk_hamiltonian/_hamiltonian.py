@@ -5,9 +5,17 @@ from sklearn.utils._param_validation import StrOptions
 from sklearn.utils.validation import check_is_fitted
 
 from ._base import BaseTrajectoryRegressor
-from ._basis import gradient_matrix, hessian_dot, n_basis_functions, total_degree_powers, value_matrix
+from ._basis import (
+    gradient_dot,
+    gradient_matrix,
+    hessian_dot,
+    n_basis_functions,
+    total_degree_powers,
+    value_matrix,
+)
 from ._integrate import METHODS, apply_inverse_symplectic
 from ._solvers import solve_dense, solve_streaming
+from ._trajectories import check_n_states
 
 
 def _symplectic_targets(y):
@@ -87,6 +95,16 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
 
     _parameter_constraints = {**BaseTrajectoryRegressor._parameter_constraints}
 
+    def _check_dimensions(self, X):
+        check_n_states(X.shape[1])
+
+    def _check_targets(self, X, y):
+        if y.ndim != 2 or y.shape != X.shape:
+            raise ValueError(
+                f"y must hold the time derivative of every state variable, with the "
+                f"same shape as X {X.shape}; got shape {y.shape}."
+            )
+
     def _design_shape(self, n_samples, n_states):
         return n_samples * n_states, n_basis_functions(n_states, self.degree)
 
@@ -111,7 +129,7 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
     def _gradient(self, X):
         width = self.powers_.shape[0] * X.shape[1]
         return self._in_blocks(
-            X, lambda B: gradient_matrix(B, self.domain_, self.powers_) @ self.coef_, width
+            X, lambda B: gradient_dot(B, self.domain_, self.powers_, self.coef_), width
         )
 
     def _vector_field(self, X):

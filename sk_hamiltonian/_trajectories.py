@@ -105,9 +105,9 @@ def check_n_states(n_states, name="X"):
     """Raise if a state dimension is not even and positive."""
     if n_states < 2 or n_states % 2:
         raise ValueError(
-            f"The state dimension of {name} is {n_states}, but a Hamiltonian system "
-            f"has an even number of states (p_1..p_d, q_1..q_d). Check the last axis "
-            f"of {name}."
+            f"{name} has {n_states} feature(s), but the states of a Hamiltonian "
+            f"system come in pairs (p_1..p_d, q_1..q_d): the number of state "
+            f"variables must be even. Check the last axis of {name}."
         )
 
 

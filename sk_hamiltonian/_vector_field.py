@@ -17,6 +17,11 @@ class VectorFieldRegressor(BaseTrajectoryRegressor):
     general not Hamiltonian and conserves nothing; it is the baseline every
     comparison of the paper uses.
 
+    Unlike :class:`HamiltonianRegressor` it is a general polynomial regressor:
+    the number of state variables need not be even and, used on 2-D ``X``, the
+    targets ``y`` may be any 1-D or 2-D array. :meth:`simulate` requires ``y``
+    to have been the time derivatives of ``X``.
+
     Parameters
     ----------
     degree : int, default=3
@@ -30,8 +35,9 @@ class VectorFieldRegressor(BaseTrajectoryRegressor):
 
     Attributes
     ----------
-    coef_ : ndarray of shape (n_basis, n_states)
-        Column ``i`` holds the coefficients of component ``i``.
+    coef_ : ndarray of shape (n_basis, n_outputs) or (n_basis,)
+        Column ``i`` holds the coefficients of output ``i`` (of component ``i``
+        of the vector field); 1-D when ``y`` was 1-D.
     powers_ : ndarray of shape (n_basis, n_states)
         Multi-indices, the constant first.
     domain_ : ndarray of shape (n_states, 2)
@@ -90,6 +96,12 @@ class VectorFieldRegressor(BaseTrajectoryRegressor):
         )
 
     def _integrator(self, method):
+        if self.coef_.ndim != 2 or self.coef_.shape[1] != self.n_features_in_:
+            raise ValueError(
+                "simulate needs a vector field: fit with y the time derivatives of X "
+                f"({self.n_features_in_} outputs); this model was fitted with "
+                f"{1 if self.coef_.ndim == 1 else self.coef_.shape[1]} output(s)."
+            )
         if method == "avf":
             raise ValueError(
                 "method='avf' needs a Hamiltonian, which VectorFieldRegressor does not "
