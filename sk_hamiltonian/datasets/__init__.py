@@ -1,6 +1,7 @@
 """Known Hamiltonian systems and trajectory data from the paper's numerical examples."""
 
 from ._systems import (
+    PAPER_DT,
     SYSTEMS,
     HamiltonianSystem,
     cherry,
@@ -13,6 +14,7 @@ from ._systems import (
 from ._trajectories import make_trajectories
 
 __all__ = [
+    "PAPER_DT",
     "SYSTEMS",
     "HamiltonianSystem",
     "cherry",
