@@ -126,10 +126,11 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
                 f"domain must have shape ({X.shape[1]}, 2) with one (low, high) row "
                 f"per state variable and low < high; got {domain.tolist()}."
             )
-        self._warn_outside(X, domain, "the training states")
+        # Frames: _warn_outside, _fit_domain, fit, its _fit_context wrapper.
+        self._warn_outside(X, domain, "the training states", stacklevel=5)
         return domain
 
-    def _warn_outside(self, X, domain=None, what="X"):
+    def _warn_outside(self, X, domain=None, what="X", stacklevel=3):
         domain = self.domain_ if domain is None else domain
         slack = DOMAIN_SLACK * (domain[:, 1] - domain[:, 0])
         outside = np.any((X < domain[:, 0] - slack) | (X > domain[:, 1] + slack), axis=1)
@@ -138,7 +139,7 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
                 f"{outside.mean():.1%} of {what} lie outside the domain "
                 f"{domain.tolist()}, where the polynomial model is not trusted.",
                 DomainWarning,
-                stacklevel=3,
+                stacklevel=stacklevel,
             )
 
     def _check_states(self, X):
@@ -233,7 +234,7 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
         Y, failed_at = integrate(self._integrator(method), x0, t, max_step)
         raise_on_failure(failed_at, t, what=f"the learned system ({type(self).__name__})")
         Y = np.swapaxes(Y, 0, 1)
-        self._warn_outside(Y.reshape(-1, Y.shape[-1]), what="the simulated states")
+        self._warn_outside(Y.reshape(-1, Y.shape[-1]), what="the simulated states", stacklevel=3)
         return Y[0] if single else Y
 
     def score(self, X, y=None, sample_weight=None):
