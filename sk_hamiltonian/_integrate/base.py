@@ -102,16 +102,32 @@ def integrate(integrator, y0, t, max_step=None):
     return out, failed_at
 
 
-def raise_on_failure(failed_at, t, what="the learned system"):
-    """Raise :class:`SimulationError` if any trajectory of :func:`integrate` failed."""
+LEARNED_MODEL_HINT = (
+    "The trajectory probably left the domain where the model is valid; use a "
+    "shorter horizon, a smaller step (max_step), or initial states inside the "
+    "training domain."
+)
+
+
+def raise_on_failure(failed_at, t, what="the learned system", hint=LEARNED_MODEL_HINT):
+    """Raise :class:`SimulationError` if any trajectory of :func:`integrate` failed.
+
+    Parameters
+    ----------
+    failed_at : ndarray of shape (n_states,)
+        As returned by :func:`integrate`.
+    t : ndarray of shape (n_times,)
+        The output times given to :func:`integrate`.
+    what : str
+        What was simulated, for the message.
+    hint : str
+        How to avoid the failure, for the message.
+    """
     n_failed = int(np.sum(failed_at < t.shape[0]))
     if n_failed:
         first = int(failed_at.min())
         raise SimulationError(
             f"Simulating {what} failed for {n_failed} of {failed_at.shape[0]} initial "
             f"state(s): the state became non-finite, or an implicit step did not "
-            f"converge, between t={t[first - 1]:.6g} and t={t[first]:.6g}. The "
-            f"trajectory probably left the domain where the model is valid; use a "
-            f"shorter horizon, a smaller step (max_step), or initial states inside "
-            f"the training domain."
+            f"converge, between t={t[first - 1]:.6g} and t={t[first]:.6g}. {hint}"
         )

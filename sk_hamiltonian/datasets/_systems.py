@@ -208,7 +208,12 @@ class HamiltonianSystem:
             raise ValueError(f"max_step must be a positive finite number, got {max_step!r}.")
         fun = lambda y: apply_inverse_symplectic(self._gradient(y))  # noqa: E731
         y, failed_at = integrate(RK4(fun), np.atleast_2d(x0), t, max_step=max_step)
-        raise_on_failure(failed_at, t, what=f"the true {self.name} system")
+        raise_on_failure(
+            failed_at,
+            t,
+            what=f"the true {self.name} system",
+            hint="Its exact solution blows up there: stop the horizon before that time.",
+        )
         y = np.swapaxes(y, 0, 1)
         return y[0] if x0.ndim == 1 else y
 
