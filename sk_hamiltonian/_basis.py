@@ -7,6 +7,7 @@ polynomials and their derivatives, and the ``*_matrix`` functions assemble
 values, gradients and Hessians of the tensor-product basis.
 """
 
+from functools import lru_cache
 from itertools import combinations_with_replacement
 from math import comb
 
@@ -82,15 +83,19 @@ def map_to_window(X, domain):
     return (2.0 * X - (low + high)) / (high - low)
 
 
+@lru_cache(maxsize=32)
 def legendre_derivative_matrix(degree):
     """Matrix ``D`` with ``P'_n = sum_k D[k, n] P_k``, for ``n <= degree``.
 
     From ``P'_{k+1} = P'_{k-1} + (2k + 1) P_k``: ``D[k, n] = 2k + 1`` when
-    ``k < n`` and ``n - k`` is odd.
+    ``k < n`` and ``n - k`` is odd. Cached (and read-only): simulation calls
+    this at every step.
     """
     k = np.arange(degree + 1)[:, None]
     n = np.arange(degree + 1)[None, :]
-    return np.where((k < n) & ((n - k) % 2 == 1), 2.0 * k + 1.0, 0.0)
+    D = np.where((k < n) & ((n - k) % 2 == 1), 2.0 * k + 1.0, 0.0)
+    D.flags.writeable = False
+    return D
 
 
 def legendre_tables(xi, degree, n_derivatives=1):
@@ -122,7 +127,7 @@ def legendre_tables(xi, degree, n_derivatives=1):
         value[1] = xi
     for k in range(1, degree):
         value[k + 1] = ((2 * k + 1) / (k + 1)) * xi * value[k] - (k / (k + 1)) * value[k - 1]
-    tables = [np.moveaxis(value, 0, -1)]
+    tables = [value.transpose(1, 2, 0)]
     if n_derivatives:
         D = legendre_derivative_matrix(degree)
         for _ in range(n_derivatives):
