@@ -14,7 +14,8 @@ the Hamiltonian over time (paper's Figure 6), trajectories (Figure 7) and phase
 plots (Figure 8).
 
 Quick mode (``SK_HAMILTONIAN_QUICK=1``, used by the documentation build): the
-horizon is ``T = 20`` instead of 100; data and models are the paper's.
+horizon is ``T = 20`` instead of 100, and the robustness check at the end
+refits on 3 data sets instead of 10; data and models are the paper's.
 """
 
 # %%

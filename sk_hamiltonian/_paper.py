@@ -176,6 +176,18 @@ def data_set_summary(errors, comparisons):
     return rows, wins
 
 
+def mean_period(t, U, component):
+    """Mean time between upward zero crossings of ``U[:, component]``.
+
+    For an oscillation about zero, its period; linear interpolation between
+    output times locates each crossing.
+    """
+    x = U[:, component]
+    k = np.flatnonzero((x[:-1] < 0) & (x[1:] >= 0))
+    crossings = t[k] - x[k] * (t[k + 1] - t[k]) / (x[k + 1] - x[k])
+    return float(np.mean(np.diff(crossings))) if crossings.size > 1 else math.nan
+
+
 def blowup_time(t, U):
     """First time at which ``U`` is NaN (blown up), or ``inf``."""
     bad = np.flatnonzero(np.isnan(U).any(axis=1))
