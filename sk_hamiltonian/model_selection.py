@@ -1,0 +1,326 @@
+"""Cross-validation helpers: honest held-out scores and the one-standard-error rule.
+
+A pipeline ``make_pipeline(DerivativeTransformer(dt=dt), HamiltonianRegressor())``
+can be searched directly with :class:`~sklearn.model_selection.GridSearchCV`
+on the trajectory array: one sample is one trajectory, so the folds hold out
+whole trajectories, and the default score already compares rollouts with the
+held-out *observations* (see :meth:`HamiltonianRegressor.score`).
+
+This module adds :func:`multistep_scorer`, a held-out score from short
+predictions started at every observation, and :func:`one_standard_error_rule`,
+a ``refit`` callable that prefers the smallest model whose score is within one
+standard error of the best.
+"""
+
+import numbers
+
+import numpy as np
+from sklearn.base import clone
+from sklearn.pipeline import Pipeline
+
+from ._base import ROLLOUT_SUBSTEPS, BaseTrajectoryRegressor, is_trajectory_container
+from ._integrate import integrate
+from ._trajectories import unpack_derivatives
+from ._vector_field import VectorFieldRegressor
+
+__all__ = ["count_terms", "multistep_scorer", "one_standard_error_rule"]
+
+
+def _final_regressor(estimator):
+    final = estimator[-1] if isinstance(estimator, Pipeline) else estimator
+    if not isinstance(final, BaseTrajectoryRegressor):
+        raise ValueError(
+            f"estimator must be a HamiltonianRegressor or VectorFieldRegressor, or a "
+            f"Pipeline ending in one; got {type(final).__name__}."
+        )
+    return final
+
+
+def count_terms(estimator, n_states, params=None):
+    """Number of coefficients an estimator fits, without fitting it.
+
+    Parameters
+    ----------
+    estimator : HamiltonianRegressor, VectorFieldRegressor or Pipeline
+        The regressor, or a pipeline ending in one (as passed to
+        :class:`~sklearn.model_selection.GridSearchCV`).
+    n_states : int
+        Number of state variables ``2d`` of the data.
+    params : dict, default=None
+        Parameters to set first, e.g. an entry of ``cv_results_["params"]``.
+
+    Returns
+    -------
+    n_terms : int
+        The ``n_terms_`` the estimator would have after fitting:
+        ``C(n + 2d, 2d) - 1`` for :class:`HamiltonianRegressor` and
+        ``2d * C(n + 2d, 2d)`` for :class:`VectorFieldRegressor`.
+
+    See Also
+    --------
+    one_standard_error_rule : Uses this count to prefer smaller models.
+
+    Examples
+    --------
+    >>> from sklearn.pipeline import make_pipeline
+    >>> from sk_hamiltonian import DerivativeTransformer, HamiltonianRegressor
+    >>> from sk_hamiltonian.model_selection import count_terms
+    >>> pipe = make_pipeline(DerivativeTransformer(dt=0.1), HamiltonianRegressor())
+    >>> count_terms(pipe, n_states=4, params={"hamiltonianregressor__degree": 3})
+    34
+    """
+    if (
+        isinstance(n_states, bool)
+        or not isinstance(n_states, numbers.Integral)
+        or n_states < 2
+        or n_states % 2
+    ):
+        raise ValueError(
+            f"n_states must be the number of state variables 2d, a positive even "
+            f"integer (p_1..p_d, q_1..q_d); got {n_states!r}."
+        )
+    if params:
+        estimator = clone(estimator).set_params(**params)
+    final = _final_regressor(estimator)
+    per_target = final._design_shape(1, n_states)[1]
+    # The baseline fits every component of the vector field separately.
+    return int(per_target * (n_states if isinstance(final, VectorFieldRegressor) else 1))
+
+
+def one_standard_error_rule(estimator, n_states, *, metric="score"):
+    """A ``refit`` callable: the smallest model within one standard error of the best.
+
+    For :class:`~sklearn.model_selection.GridSearchCV` (or any search passing
+    ``cv_results_`` to ``refit``). Among the candidates whose mean test score
+    is at least ``best_mean - best_std / sqrt(n_splits)`` (the best candidate's
+    mean score minus its standard error), it returns the one with the fewest
+    fitted coefficients; ties go to the higher mean score.
+
+    Parameters
+    ----------
+    estimator : HamiltonianRegressor, VectorFieldRegressor or Pipeline
+        The estimator given to the search. The rule only knows the candidates'
+        parameters, so it counts each candidate's terms by setting them on a
+        clone of this estimator (see :func:`count_terms`); parameters not in
+        the grid keep the estimator's values.
+    n_states : int
+        Number of state variables ``2d`` of the data being searched.
+    metric : str, default="score"
+        Which score to use: ``"score"`` for single-metric searches, else the
+        key of the ``scoring`` dict.
+
+    Returns
+    -------
+    rule : callable
+        ``rule(cv_results) -> int``, the index of the chosen candidate.
+
+    Raises
+    ------
+    ValueError
+        From ``rule``, if ``cv_results`` lacks the test scores of ``metric``
+        or no candidate has a finite mean score.
+
+    See Also
+    --------
+    count_terms : The complexity measure.
+    multistep_scorer : A held-out score to use with this rule.
+
+    Notes
+    -----
+    Candidates whose mean score is NaN or infinite (a fit or a rollout failed
+    in some fold: scikit-learn's ``error_score``, or a rollout scorer's
+    ``-inf``) are never chosen, and do not define the best score. With a
+    callable ``refit``, the search sets ``best_index_`` and ``best_params_``
+    but not ``best_score_``; read ``cv_results_["mean_test_score"]`` instead.
+    The standard deviation in ``cv_results_`` is that of the fold scores,
+    ``numpy.std`` (no degrees-of-freedom correction).
+
+    Examples
+    --------
+    >>> from sklearn.model_selection import GridSearchCV
+    >>> from sklearn.pipeline import make_pipeline
+    >>> from sk_hamiltonian import DerivativeTransformer, HamiltonianRegressor
+    >>> from sk_hamiltonian.datasets import make_trajectories
+    >>> from sk_hamiltonian.model_selection import one_standard_error_rule
+    >>> X = make_trajectories("henon_heiles", 60, 2, dt=0.01, random_state=0)
+    >>> pipe = make_pipeline(DerivativeTransformer(dt=0.01, method="finite_difference"),
+    ...                      HamiltonianRegressor())
+    >>> search = GridSearchCV(pipe, {"hamiltonianregressor__degree": [2, 3, 4, 5]},
+    ...                       refit=one_standard_error_rule(pipe, n_states=4)).fit(X)
+    >>> search.best_params_
+    {'hamiltonianregressor__degree': 3}
+    """
+    count_terms(estimator, n_states)  # fail now on a wrong estimator or n_states
+    if not isinstance(metric, str):
+        raise ValueError(
+            f"metric must be the name of a score in cv_results_ ('score', or a key "
+            f"of the scoring dict); got {metric!r}."
+        )
+
+    def rule(cv_results):
+        mean_key, std_key = f"mean_test_{metric}", f"std_test_{metric}"
+        if mean_key not in cv_results or std_key not in cv_results:
+            raise ValueError(
+                f"cv_results_ has no {mean_key!r}: pass metric= the name of a score "
+                f"of the search ('score' for single-metric searches)."
+            )
+        means = np.asarray(cv_results[mean_key], dtype=float)
+        stds = np.asarray(cv_results[std_key], dtype=float)
+        finite = np.isfinite(means) & np.isfinite(stds)
+        if not finite.any():
+            raise ValueError(
+                f"No candidate has a finite mean {metric!r}: every candidate failed in "
+                f"some fold. Rerun the search with error_score='raise' to see why."
+            )
+        n_splits = sum(
+            1 for key in cv_results if key.startswith("split") and key.endswith(f"_test_{metric}")
+        )
+        best = int(np.flatnonzero(finite)[np.argmax(means[finite])])
+        threshold = means[best] - stds[best] / np.sqrt(max(n_splits, 1))
+        eligible = np.flatnonzero(finite & (means >= threshold))
+        n_terms = np.array(
+            [count_terms(estimator, n_states, cv_results["params"][i]) for i in eligible]
+        )
+        # Fewest terms first, then the higher mean score, then the first listed.
+        order = np.lexsort((eligible, -means[eligible], n_terms))
+        return int(eligible[order[0]])
+
+    return rule
+
+
+def multistep_errors(model, Xt, n_steps, *, stride=1, substeps=ROLLOUT_SUBSTEPS):
+    """Relative errors of ``n_steps``-ahead predictions from observed states.
+
+    From every ``stride``-th observation of each held-out trajectory (that has
+    ``n_steps`` observations after it), the model is integrated ``n_steps``
+    sampling intervals ahead and compared with the observations it passes.
+    Each prediction is compared over its whole segment, its starting
+    observation included (where it is exact), as the default score compares
+    its single rollout: with ``n_steps`` at least the number of intervals, the
+    two coincide.
+
+    Parameters
+    ----------
+    model : fitted HamiltonianRegressor or VectorFieldRegressor
+        The model to integrate (by RK4).
+    Xt : derivative layout
+        Held-out trajectories from :class:`DerivativeTransformer`; only their
+        times and raw observations are used.
+    n_steps : int
+        Prediction horizon, in sampling intervals. Trajectories with at most
+        ``n_steps`` intervals use one prediction over their whole length.
+    stride : int, default=1
+        Distance between starts, in samples.
+    substeps : int, default=4
+        Integration steps per sampling interval.
+
+    Returns
+    -------
+    errors : ndarray of shape (n_trajectories,)
+        ``||X_hat - X||_F / ||X||_F`` per trajectory over all its predicted
+        segments; ``inf`` where a prediction failed.
+    """
+    data = unpack_derivatives(Xt)
+    times, observed = list(data.times), list(data.observed)
+    integrator = model._integrator("rk4")
+    starts, targets, rel_times, owner = [], [], [], []
+    for k, (t, O) in enumerate(zip(times, observed)):
+        horizon = min(n_steps, t.shape[0] - 1)
+        for j in range(0, t.shape[0] - horizon, stride):
+            starts.append(O[j])
+            targets.append(O[j : j + horizon + 1])
+            rel_times.append(t[j : j + horizon + 1] - t[j])
+            owner.append(k)
+    owner = np.array(owner)
+    # Segments whose relative time stamps agree (to round-off) share one batch.
+    groups = {}
+    for i, rel in enumerate(rel_times):
+        scale = max(rel[-1], np.finfo(float).tiny)
+        groups.setdefault((rel.shape[0], np.round(rel / scale, 9).tobytes()), []).append(i)
+    squared_error = np.zeros(len(observed))
+    squared_norm = np.zeros(len(observed))
+    failed = np.zeros(len(observed), dtype=bool)
+    for members in groups.values():
+        rel = rel_times[members[0]]
+        if rel.shape[0] < 2:
+            continue
+        max_step = np.min(np.diff(rel)) / substeps
+        Y, failed_at = integrate(integrator, np.stack([starts[i] for i in members]), rel, max_step)
+        Y = np.swapaxes(Y, 0, 1)
+        T = np.stack([targets[i] for i in members])
+        who = owner[members]
+        np.add.at(squared_error, who, np.sum((Y - T) ** 2, axis=(1, 2)))
+        np.add.at(squared_norm, who, np.sum(T**2, axis=(1, 2)))
+        failed[who[failed_at < rel.shape[0]]] = True
+    with np.errstate(invalid="ignore", divide="ignore"):
+        errors = np.sqrt(squared_error / np.maximum(squared_norm, np.finfo(float).tiny))
+    errors[failed] = np.inf
+    return errors
+
+
+def multistep_scorer(n_steps=5, *, stride=1):
+    """Held-out score from short predictions started at every observation.
+
+    A scorer for ``scoring=`` of :class:`~sklearn.model_selection.GridSearchCV`
+    and :func:`~sklearn.model_selection.cross_val_score`. Like the default
+    ``score``, it compares predictions with the raw held-out *observations*
+    and never with derivatives or smoothed states, so it cannot reward the
+    derivative estimator being tuned; unlike it, it restarts from every
+    observation, which averages out the noise of the starting states.
+
+    Parameters
+    ----------
+    n_steps : int, default=5
+        Prediction horizon, in sampling intervals.
+    stride : int, default=1
+        Distance between starts, in samples; ``stride=n_steps`` costs as much
+        as the default score.
+
+    Returns
+    -------
+    scorer : callable
+        ``scorer(estimator, X, y=None) -> float``, where ``estimator`` is a
+        fitted pipeline ending in a regressor and ``X`` held-out raw
+        trajectories (or ``estimator`` a regressor and ``X`` the derivative
+        layout). The score is ``1 - mean_k min(1, e_k)``, with ``e_k`` the
+        relative error of trajectory ``k`` (see :func:`multistep_errors`);
+        at most 1, and 0 for a model whose predictions fail.
+
+    See Also
+    --------
+    one_standard_error_rule : Prefer smaller models among near-best scores.
+    HamiltonianRegressor.score : The default rollout score.
+
+    Examples
+    --------
+    >>> from sklearn.model_selection import cross_val_score
+    >>> from sklearn.pipeline import make_pipeline
+    >>> from sk_hamiltonian import DerivativeTransformer, HamiltonianRegressor
+    >>> from sk_hamiltonian.datasets import make_trajectories
+    >>> from sk_hamiltonian.model_selection import multistep_scorer
+    >>> X = make_trajectories("single_pendulum", 50, 20, dt=0.05, random_state=0)
+    >>> pipe = make_pipeline(DerivativeTransformer(dt=0.05, method="finite_difference"),
+    ...                      HamiltonianRegressor(degree=6))
+    >>> scores = cross_val_score(pipe, X, cv=3, scoring=multistep_scorer(5))
+    >>> bool(scores.min() > 0.9)
+    True
+    """
+    for name, value in (("n_steps", n_steps), ("stride", stride)):
+        if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < 1:
+            raise ValueError(f"{name} must be a positive integer; got {value!r}.")
+
+    def scorer(estimator, X, y=None):
+        if isinstance(estimator, Pipeline):
+            model = _final_regressor(estimator)
+            Xt = estimator[:-1].transform(X)
+        else:
+            model, Xt = _final_regressor(estimator), X
+        if not is_trajectory_container(Xt):
+            raise ValueError(
+                "multistep_scorer needs trajectories: raw trajectories for a pipeline, "
+                "or the DerivativeTransformer layout for a bare regressor."
+            )
+        errors = multistep_errors(model, Xt, n_steps, stride=stride)
+        return float(1.0 - np.mean(np.minimum(errors, 1.0)))
+
+    return scorer
