@@ -1,0 +1,487 @@
+"""Shared pieces of the benchmarks: scenes, the three methods, rollouts, metrics.
+
+The scripts pin BLAS to one thread *before* importing this module (and so
+numpy); this module assumes that has been done.
+
+Methods compared
+----------------
+``SP``
+    :class:`sk_hamiltonian.HamiltonianRegressor`, the structure-preserving fit.
+``non-SP``
+    :class:`sk_hamiltonian.VectorFieldRegressor`, the same polynomial space
+    fitted component by component (the paper's baseline).
+``PySINDy``
+    ``pysindy.SINDy`` with a ``PolynomialLibrary`` of the same degree and the
+    ``STLSQ`` optimizer, fed the same trajectories (as a list, its
+    multiple-trajectory API) and the same derivative estimates. Optional: when
+    pysindy is not importable, its rows are skipped and the reason printed.
+
+All three see identical states and time derivatives, from one
+:class:`sk_hamiltonian.DerivativeTransformer` call whose time is charged to each
+method's fit time, so the comparison is between the regressions.
+"""
+
+import csv
+import math
+import re
+import time
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+
+from sk_hamiltonian import DerivativeTransformer, SimulationError, unpack_derivatives
+from sk_hamiltonian.datasets import PAPER_DT, load_system, make_trajectories
+
+# Reference solutions: RK4 with this step, 10x finer than the sampling step.
+# Its error (~1e-12 relative) is far below every learning error measured here,
+# and it is 10x cheaper than the system's default (dt/100).
+REFERENCE_STEP = PAPER_DT / 10
+# Rollouts are chopped into chunks of this many output times, so that one
+# failing initial state costs one chunk of single-state simulation rather than
+# a rerun of the whole batch.
+CHUNK = 50
+# The learned state is "out of the domain" beyond this relative slack.
+DOMAIN_SLACK = 1e-9
+# Candidate fresh initial states are drawn in a box around u0* whose half-widths
+# are this fraction of the domain's; farther away, most true trajectories of
+# Henon-Heiles and Cherry leave the domain (measured: Cherry keeps 0 of 200
+# states drawn in the whole domain, Henon-Heiles 7%).
+FRESH_BOX_FRACTION = 0.25
+
+
+def sindy_status():
+    """Whether pysindy can be used, and why not.
+
+    Returns
+    -------
+    module : module or None
+        ``pysindy``, or None when it is unavailable.
+    reason : str
+        Version, or why it was skipped.
+    """
+    try:
+        import pysindy
+    except Exception as error:  # ImportError, or a broken install
+        return None, f"pysindy not importable ({type(error).__name__}: {error})"
+    return pysindy, f"pysindy {getattr(pysindy, '__version__', '?')}"
+
+
+@dataclass
+class Scene:
+    """One learning problem: a system, its data and the model degree.
+
+    Attributes
+    ----------
+    label : str
+        Name in tables and charts.
+    system : str
+        Name accepted by :func:`sk_hamiltonian.datasets.load_system`.
+    degree : int
+        Polynomial degree ``n`` shared by all methods.
+    n_trajectories, n_intervals : int
+        ``M`` and ``J``.
+    noise : float
+        Relative noise level.
+    dt : float
+        Sampling step.
+    seed : int
+        Seed of the trajectories.
+    """
+
+    label: str
+    system: str
+    degree: int
+    n_trajectories: int
+    n_intervals: int
+    noise: float = 0.0
+    dt: float = PAPER_DT
+    seed: int = 0
+
+    @property
+    def derivative(self):
+        """The paper's rule: finite differences if clean, Q = 5 polynomials if noisy."""
+        if self.noise == 0:
+            return DerivativeTransformer(dt=self.dt, method="finite_difference")
+        return DerivativeTransformer(dt=self.dt, method="polynomial", degree=5)
+
+
+def make_data(scene):
+    """Trajectories of a scene and their derivative layout.
+
+    Returns
+    -------
+    system : HamiltonianSystem
+    Xt : ndarray
+        Derivative layout (states, derivatives, observations).
+    derivative_time : float
+        Seconds spent estimating derivatives (charged to every method's fit).
+    """
+    system = load_system(scene.system)
+    X = make_trajectories(
+        system, scene.n_trajectories, scene.n_intervals, scene.dt,
+        noise=scene.noise, random_state=scene.seed,
+    )
+    start = time.perf_counter()
+    Xt = scene.derivative.fit_transform(X)
+    return system, Xt, time.perf_counter() - start
+
+
+class SindyField:
+    """Vectorized evaluation of a fitted PySINDy polynomial model.
+
+    ``SINDy.predict`` costs about 3 ms per call whatever the batch size
+    (input validation and axis bookkeeping), which makes long or many rollouts
+    through it impractical. The model itself is ``Theta(x) @ coef.T`` with
+    monomial features ``prod(x ** powers_)``; this class evaluates exactly
+    that, and checks it against ``predict`` on the fitted data.
+
+    Parameters
+    ----------
+    model : pysindy.SINDy
+        Fitted, with a ``PolynomialLibrary``.
+    check_states : ndarray of shape (n, n_states)
+        States on which to compare with ``predict``.
+    """
+
+    def __init__(self, model, check_states):
+        self.powers = np.asarray(model.feature_library.powers_)
+        self.coef = np.asarray(model.coefficients())
+        self.n_params = int(np.count_nonzero(self.coef))
+        ours = self(check_states)
+        theirs = np.asarray(model.predict(check_states))
+        scale = max(1.0, float(np.abs(theirs).max()))
+        if not np.allclose(ours, theirs, rtol=1e-9, atol=1e-9 * scale):
+            raise RuntimeError("SindyField disagrees with SINDy.predict; library changed?")
+
+    def __call__(self, X):
+        with np.errstate(over="ignore", invalid="ignore"):
+            return np.prod(X[:, None, :] ** self.powers[None], axis=2) @ self.coef.T
+
+
+def split_layout(Xt):
+    """States and derivatives of a derivative layout, as lists per trajectory."""
+    data = unpack_derivatives(Xt)
+    return list(data.states), list(data.derivatives)
+
+
+def fit_sindy(ps, Xt, degree, threshold, dt):
+    """Fit PySINDy on the layout's states and derivatives (list of trajectories)."""
+    states, derivatives = split_layout(Xt)
+    model = ps.SINDy(
+        optimizer=ps.STLSQ(threshold=threshold),
+        feature_library=ps.PolynomialLibrary(degree=degree),
+    )
+    with warnings.catch_warnings():
+        # STLSQ warns when a threshold zeroes everything; that shows in the error.
+        warnings.simplefilter("ignore")
+        model.fit(states, t=dt, x_dot=derivatives)
+    return model
+
+
+def tune_sindy_threshold(ps, Xt, degree, dt, thresholds, tolerance=1.25, seed=0):
+    """Pick the STLSQ threshold by derivative error on held-out trajectories.
+
+    The classic SINDy criterion, on 20 % of the trajectories held out (whole
+    trajectories, so no state is in both parts), with a parsimony rule: the
+    *largest* threshold whose held-out mean squared error is within
+    ``tolerance`` times the best one. Plain "best error" picks 0 (no sparsity,
+    i.e. the non-SP least-squares fit in a monomial basis) on every scene here,
+    because extra terms absorb derivative-estimation error. The rule is blind
+    to the test rollouts.
+
+    Returns
+    -------
+    threshold : float
+    scores : dict
+        Held-out MSE per threshold.
+    """
+    states, derivatives = split_layout(Xt)
+    order = np.random.default_rng(seed).permutation(len(states))
+    n_val = max(1, len(states) // 5)
+    val, train = order[:n_val], order[n_val:]
+    train_layout = [Xt[k] for k in train]
+    X_val = np.concatenate([states[k] for k in val])
+    Y_val = np.concatenate([derivatives[k] for k in val])
+    scores = {}
+    for threshold in thresholds:
+        model = fit_sindy(ps, train_layout, degree, threshold, dt)
+        with np.errstate(all="ignore"):
+            mse = float(np.mean((np.asarray(model.predict(X_val)) - Y_val) ** 2))
+        scores[threshold] = mse if np.isfinite(mse) else np.inf
+    best = min(scores.values())
+    return max(thr for thr, mse in scores.items() if mse <= tolerance * best), scores
+
+
+def design_condition(ps_model, Xt):
+    """Condition number of PySINDy's library matrix, columns scaled to unit norm.
+
+    Column equilibration matches what ``cond_`` reports for our regressors, so
+    the numbers compare; raw monomials on a wide box are far worse unscaled.
+    """
+    states, _ = split_layout(Xt)
+    powers = ps_model.feature_library.powers_
+    Theta = np.prod(np.concatenate(states)[:, None, :] ** powers[None], axis=2)
+    norms = np.linalg.norm(Theta, axis=0)
+    norms[norms == 0] = 1.0
+    return float(np.linalg.cond(Theta / norms))
+
+
+def rk4_step(fun, y, h):
+    """One classical RK4 step (the same scheme as sk_hamiltonian's)."""
+    k1 = fun(y)
+    k2 = fun(y + (0.5 * h) * k1)
+    k3 = fun(y + (0.5 * h) * k2)
+    k4 = fun(y + h * k3)
+    return y + (h / 6.0) * (k1 + 2.0 * (k2 + k3) + k4)
+
+
+def rk4_rollout(fun, x0, t, substeps=1):
+    """RK4 on the output grid for a vector field callable; NaN after failure.
+
+    Parameters
+    ----------
+    fun : callable
+        Vector field, ``(n, n_states) -> (n, n_states)``.
+    x0 : array-like of shape (n_initial, n_states)
+    t : ndarray of shape (n_times,)
+    substeps : int, default=1
+        RK4 steps per output interval.
+
+    Returns
+    -------
+    Y : ndarray of shape (n_initial, n_times, n_states)
+    fail_time : ndarray of shape (n_initial,)
+        First output time not reached (non-finite state), ``inf`` if none.
+    """
+    x0 = np.atleast_2d(np.asarray(x0, dtype=float))
+    Y = np.full((x0.shape[0], t.size, x0.shape[1]), np.nan)
+    Y[:, 0] = x0
+    fail_time = np.full(x0.shape[0], np.inf)
+    active = np.arange(x0.shape[0])
+    y = x0.copy()
+    with np.errstate(all="ignore"):
+        for k in range(t.size - 1):
+            h = (t[k + 1] - t[k]) / substeps
+            for _ in range(substeps):
+                y = rk4_step(fun, y, h)
+            ok = np.isfinite(y).all(axis=1)
+            if not ok.all():
+                fail_time[active[~ok]] = t[k + 1]
+                active, y = active[ok], y[ok]
+                if active.size == 0:
+                    break
+            Y[active, k + 1] = y
+    return Y, fail_time
+
+
+def _failure_interval(error):
+    """``(t_last_reached, t_not_reached)`` from a SimulationError message.
+
+    SimulationError carries the failure time only in its message ("... between
+    t=A and t=B ..."); see the benchmark README for the attribute it could have.
+    """
+    for name in ("t_failed", "failure_time"):
+        if hasattr(error, name):
+            return math.nan, float(getattr(error, name))
+    match = re.search(r"between t=(\S+) and t=(\S+?)\.(\s|$)", str(error))
+    if match is None:
+        return math.nan, math.nan
+    return float(match.group(1)), float(match.group(2))
+
+
+def simulate_chunk(model, x0, t, method):
+    """``model.simulate`` of a batch; failures become NaN and a failure time."""
+    try:
+        return model.simulate(x0, t, method=method), np.full(x0.shape[0], np.inf)
+    except SimulationError:
+        pass
+    Y = np.full((x0.shape[0], t.size, x0.shape[1]), np.nan)
+    fail_time = np.full(x0.shape[0], np.inf)
+    for i, state in enumerate(x0):
+        try:
+            Y[i] = model.simulate(state, t, method=method)
+        except SimulationError as error:
+            reached, failed = _failure_interval(error)
+            if np.isfinite(reached):
+                # The message rounds times to 6 digits: take the nearest grid time.
+                last = int(np.argmin(np.abs(t - reached)))
+            elif np.isfinite(failed):
+                last = max(0, int(np.argmin(np.abs(t - failed))) - 1)
+            else:
+                last = 0
+            if last > 0:
+                Y[i, : last + 1] = model.simulate(state, t[: last + 1], method=method)
+            else:
+                Y[i, 0] = state
+            fail_time[i] = t[min(last + 1, t.size - 1)]
+    return Y, fail_time
+
+
+def rollout(model, x0, t, method="rk4"):
+    """Simulate a fitted model from several initial states, surviving failures.
+
+    Parameters
+    ----------
+    model : HamiltonianRegressor, VectorFieldRegressor or SindyField
+        Package estimators go through their public ``simulate`` (one step per
+        output interval); a :class:`SindyField` through :func:`rk4_rollout`.
+    x0 : ndarray of shape (n_initial, n_states)
+    t : ndarray of shape (n_times,)
+        Output grid, which is also the step grid.
+    method : {"rk4", "avf"}
+
+    Returns
+    -------
+    Y : ndarray of shape (n_initial, n_times, n_states)
+        NaN from the failure of a trajectory on.
+    fail_time : ndarray of shape (n_initial,)
+        First output time a trajectory did not reach (``inf``: none).
+    """
+    x0 = np.atleast_2d(np.asarray(x0, dtype=float))
+    if isinstance(model, SindyField):
+        return rk4_rollout(model, x0, t)
+    Y = np.full((x0.shape[0], t.size, x0.shape[1]), np.nan)
+    Y[:, 0] = x0
+    fail_time = np.full(x0.shape[0], np.inf)
+    active = np.arange(x0.shape[0])
+    with warnings.catch_warnings():
+        # Leaving the domain is measured (escape_time), not warned about.
+        warnings.simplefilter("ignore")
+        for start in range(0, t.size - 1, CHUNK):
+            stop = min(start + CHUNK, t.size - 1)
+            piece, failed = simulate_chunk(model, Y[active, start], t[start : stop + 1], method)
+            Y[active, start : stop + 1] = piece
+            fail_time[active] = failed
+            active = active[~np.isfinite(failed)]
+            if active.size == 0:
+                break
+    return Y, fail_time
+
+
+def escape_time(Y, t, domain):
+    """First output time at which each trajectory is outside ``domain`` (``inf``: never)."""
+    domain = np.asarray(domain)
+    slack = DOMAIN_SLACK * (domain[:, 1] - domain[:, 0])
+    with np.errstate(invalid="ignore"):
+        out = np.any((Y < domain[:, 0] - slack) | (Y > domain[:, 1] + slack), axis=2)
+    out |= ~np.isfinite(Y).all(axis=2)
+    first = np.where(out.any(axis=1), out.argmax(axis=1), -1)
+    return np.where(first >= 0, t[np.maximum(first, 0)], np.inf)
+
+
+def relative_error(Y, truth, t, horizon):
+    """``||Y - U||_F / ||U||_F`` over ``t <= horizon``, per trajectory; inf if it failed.
+
+    The paper plots ``||u~(t) - u(t)|| / ||u(t)||`` pointwise; this is its
+    root-mean-square over ``[0, horizon]``, which is stable where the
+    pointwise ratio oscillates with the phase.
+    """
+    window = t <= horizon + 1e-9
+    diff = Y[:, window] - truth[:, window]
+    with np.errstate(invalid="ignore", over="ignore"):
+        err = np.linalg.norm(diff.reshape(diff.shape[0], -1), axis=1) / np.linalg.norm(
+            truth[:, window].reshape(diff.shape[0], -1), axis=1
+        )
+    return np.where(np.isfinite(err), err, np.inf)
+
+
+def reference(system, x0, t):
+    """True trajectories by RK4 with steps of at most ``REFERENCE_STEP``.
+
+    Returns
+    -------
+    Y : ndarray of shape (n_initial, n_times, n_states)
+        NaN after a blow-up.
+    fail_time : ndarray of shape (n_initial,)
+        First output time not reached (``inf``: none).
+    """
+    substeps = max(1, math.ceil((t[1] - t[0]) / REFERENCE_STEP - 1e-9)) if t.size > 1 else 1
+    return rk4_rollout(system.vector_field, x0, t, substeps)
+
+
+def test_states(system, n_fresh, horizon, step, seed=1):
+    """The paper's ``u0*`` plus fresh states, the output grid and the truth.
+
+    Fresh candidates are uniform in a box around ``u0*`` (half-widths
+    ``FRESH_BOX_FRACTION`` times the domain's, clipped to it); a candidate is
+    kept when its true solution stays finite and inside the domain up to
+    ``horizon``, so that "the learned model failed" never means "the truth
+    left the box the model was trained on". Candidates are screened with RK4
+    at ``step``, then the survivors are checked again on the fine reference
+    (on chaotic Henon-Heiles orbits the two can disagree).
+
+    Returns
+    -------
+    x0 : ndarray of shape (1 + n_found, n_states)
+        ``u0*`` first; ``n_found <= n_fresh`` if too few candidates qualify.
+    t : ndarray of shape (n_times,)
+        Output grid ``0, step, ..., horizon``, also the models' step grid.
+    truth : ndarray of shape (1 + n_found, n_times, n_states)
+    """
+    t = np.arange(0.0, horizon + step / 2, step)
+    domain = system.domain
+    half = FRESH_BOX_FRACTION * 0.5 * (domain[:, 1] - domain[:, 0])
+    low = np.maximum(system.initial_state - half, domain[:, 0])
+    high = np.minimum(system.initial_state + half, domain[:, 1])
+    candidates = np.random.default_rng(seed).uniform(
+        low, high, (max(50, 40 * n_fresh), low.size))
+    Y, fail_time = rk4_rollout(system.vector_field, candidates, t)
+    keep = np.isinf(fail_time) & np.isinf(escape_time(Y, t, domain))
+    x0 = np.vstack([system.initial_state, candidates[keep][: 2 * n_fresh]])
+    truth, fail_time = reference(system, x0, t)
+    if not np.isinf(fail_time[0]):
+        raise RuntimeError(f"the true {system.name} solution from u0* fails before {horizon}")
+    keep = np.isinf(fail_time) & np.isinf(escape_time(truth, t, domain))
+    keep[0] = True  # u0* always: it is the paper's test state
+    rows = np.flatnonzero(keep)[: 1 + n_fresh]
+    return x0[rows], t, truth[rows]
+
+
+def best_time(fun, repeats):
+    """Smallest wall time of ``repeats`` calls, and the last result."""
+    best, result = math.inf, None
+    for _ in range(max(1, repeats)):
+        start = time.perf_counter()
+        result = fun()
+        best = min(best, time.perf_counter() - start)
+    return best, result
+
+
+def write_csv(path, rows, columns):
+    """Write dict rows; floats with full precision, non-finite as inf/nan."""
+    with open(path, "w", newline="") as handle:
+        writer = csv.DictWriter(handle, fieldnames=columns, extrasaction="ignore")
+        writer.writeheader()
+        for row in rows:
+            writer.writerow({k: (repr(float(v)) if isinstance(v, (float, np.floating)) else v)
+                             for k, v in row.items()})
+
+
+def fmt(value, digits=3, inf="FAIL"):
+    """Compact number for printed tables; ``inf`` is how +inf reads in that column."""
+    if isinstance(value, str):
+        return value
+    if value is None or (isinstance(value, float) and math.isnan(value)):
+        return "-"
+    if isinstance(value, (int, np.integer)):
+        return str(value)
+    if math.isinf(value):
+        return inf if value > 0 else "-inf"
+    return f"{value:.{digits}g}"
+
+
+def print_table(rows, columns, headers=None, file=None):
+    """Plain fixed-width table (what the README pastes)."""
+    headers = headers or columns
+    # +inf is a failed rollout in error columns, "did not happen" in time columns.
+    cells = [[fmt(row.get(c, ""), digits=4 if c.endswith("_time") else 3,
+                  inf="never" if c.endswith("_time") else "FAIL")
+              for c in columns] for row in rows]
+    widths = [max(len(h), *(len(r[i]) for r in cells)) if cells else len(h)
+              for i, h in enumerate(headers)]
+    line = "  ".join(h.ljust(w) for h, w in zip(headers, widths))
+    print(line, file=file)
+    print("  ".join("-" * w for w in widths), file=file)
+    for r in cells:
+        print("  ".join(c.ljust(w) for c, w in zip(r, widths)), file=file)

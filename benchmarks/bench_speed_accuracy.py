@@ -1,0 +1,319 @@
+"""Speed against accuracy: SP, non-SP and PySINDy on the paper's systems, in one run.
+
+For each scene (a system, its training data and a polynomial degree) the three
+methods are fitted on the same states and time derivatives, then simulated from
+the paper's test state ``u0*`` and from a few fresh initial states, and compared
+with the true solution. Everything is timed side by side in the same process,
+so the printed ratios (e.g. SP fit time / PySINDy fit time) are comparable even
+on a busy machine; absolute seconds are not the point.
+
+Rows (``method``):
+
+``SP-RK4``, ``SP-AVF``
+    :class:`~sk_hamiltonian.HamiltonianRegressor`, one fit, simulated with
+    classical RK4 and with the energy-conserving averaged vector field.
+``non-SP-RK4``
+    :class:`~sk_hamiltonian.VectorFieldRegressor` (the paper's baseline).
+``PySINDy-RK4``
+    PySINDy's model stepped by the same fixed-step RK4 through its public
+    ``predict`` (timed); accuracy from the identical vectorized evaluation,
+    whose time is also reported (``sim_vectorized_s``). The STLSQ threshold is
+    tuned modestly: the largest of (0, 0.001, 0.01, 0.1) whose derivative
+    error on held-out trajectories is within 1.25x of the best (tuning time
+    not counted in ``fit_s``).
+``PySINDy-LSODA``
+    PySINDy's own ``simulate`` (``solve_ivp`` LSODA, rtol = atol = 1e-12, its
+    defaults); from ``u0*`` only, as it takes seconds per trajectory.
+
+Outputs, in ``--output`` (default ``benchmarks/results/``):
+``speed_accuracy.csv``, ``speed_ratios.csv`` and ``speed_vs_accuracy.png``.
+
+Run ``python benchmarks/bench_speed_accuracy.py`` (about 3-4 minutes on 2 cores
+with pysindy installed) or with ``--quick`` (a smoke run, < 30 s).
+"""
+
+import os
+
+# Pin BLAS before numpy is imported: timings must not depend on how many
+# threads other users leave free, and one thread is what a fair per-core
+# comparison of the three methods needs.
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ[_var] = "1"
+
+import argparse  # noqa: E402
+import datetime  # noqa: E402
+import platform  # noqa: E402
+import sys  # noqa: E402
+import time  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import matplotlib  # noqa: E402
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+
+import _common as C  # noqa: E402
+from sk_hamiltonian import (  # noqa: E402
+    HamiltonianRegressor,
+    SimulationError,
+    VectorFieldRegressor,
+)
+
+# The paper's settings (M, J, n, noise) with dt = 0.01 (the paper gives none).
+SCENES = [
+    C.Scene("pendulum 8% noise", "single_pendulum", 6, 500, 40, noise=0.08),
+    C.Scene("pendulum clean", "single_pendulum", 6, 500, 40),
+    C.Scene("Henon-Heiles", "henon_heiles", 3, 500, 2),
+    C.Scene("Cherry", "cherry", 3, 500, 2),
+]
+QUICK_SCENES = [
+    C.Scene("pendulum 8% noise", "single_pendulum", 6, 100, 40, noise=0.08),
+    C.Scene("Henon-Heiles", "henon_heiles", 3, 100, 2),
+]
+HORIZONS = (10.0, 20.0)
+THRESHOLDS = (0.0, 0.001, 0.01, 0.1)  # PySINDy's default is 0.1
+
+COLUMNS = [
+    "scene", "method", "n_params", "cond", "fit_s", "sim_s", "total_s", "sim_vectorized_s",
+    "err_T10", "err_T20", "fresh_err_T10", "fresh_err_T20", "fresh_failed", "n_fresh",
+    "fail_time", "energy_drift", "model_energy_drift", "note",
+]
+RATIO_COLUMNS = ["scene", "ratio", "value"]
+
+
+def parse_args(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--quick", action="store_true",
+                        help="small smoke run (< 30 s): 2 scenes, M=100, coarser steps")
+    parser.add_argument("--output", type=Path,
+                        default=Path(__file__).resolve().parent / "results",
+                        help="directory for CSV and PNG outputs")
+    parser.add_argument("--no-sindy", action="store_true", help="skip PySINDy even if installed")
+    parser.add_argument("--repeats", type=int, default=None,
+                        help="timing repeats, best kept (default 3, quick 1)")
+    parser.add_argument("--n-fresh", type=int, default=None,
+                        help="fresh test initial states (default 8, quick 2)")
+    return parser.parse_args(argv)
+
+
+def model_energy(model, Y):
+    """Drift of the learned Hamiltonian along its own trajectory (SP only)."""
+    H = model.hamiltonian(Y)
+    return float(np.max(np.abs(H - H[0])))
+
+
+def accuracy(Y, fail_time, truth, t, system, n_fresh_found):
+    """Error columns from rollouts of [u0*, fresh...] against the truth."""
+    row = {}
+    for T in HORIZONS:
+        err = C.relative_error(Y, truth, t, T)
+        row[f"err_T{T:g}"] = err[0]
+        fresh = err[1:]
+        # Median: one diverging state must not hide how the others did, and
+        # inf (failure) still wins when most of them failed.
+        row[f"fresh_err_T{T:g}"] = float(np.median(fresh)) if fresh.size else np.nan
+    row["fresh_failed"] = int(np.sum(np.isfinite(fail_time[1:]) | ~np.isfinite(
+        C.relative_error(Y[1:], truth[1:], t, HORIZONS[-1]))))
+    row["n_fresh"] = n_fresh_found
+    row["fail_time"] = float(fail_time[0])
+    with np.errstate(all="ignore"):
+        drift = np.abs(system.hamiltonian(Y[0]) - system.hamiltonian(truth[0, 0]))
+    row["energy_drift"] = float(np.max(drift)) if np.isfinite(drift).all() else np.inf
+    return row
+
+
+def time_simulation(model, x0, t, method, repeats):
+    """Wall time of ``model.simulate(u0*)`` over the whole horizon (NaN if it fails)."""
+    try:
+        seconds, _ = C.best_time(lambda: model.simulate(x0, t, method=method), repeats)
+    except SimulationError:
+        return np.nan
+    return seconds
+
+
+def run_scene(scene, args, ps):
+    """All rows of one scene."""
+    system, Xt, deriv_s = C.make_data(scene)
+    h = 0.02 if args.quick else scene.dt
+    x0, t, truth = C.test_states(system, args.n_fresh, HORIZONS[-1], h, seed=scene.seed + 1)
+    n_fresh = x0.shape[0] - 1
+    u0 = system.initial_state
+    rows = []
+
+    def add(method, model, fit_s, sim_s, Y, fail_time, n_params, cond, note=""):
+        row = dict(scene=scene.label, method=method, n_params=n_params, cond=cond,
+                   fit_s=fit_s, sim_s=sim_s, total_s=fit_s + sim_s, sim_vectorized_s=np.nan,
+                   note=note)
+        row.update(accuracy(Y, fail_time, truth, t, system, n_fresh))
+        row["model_energy_drift"] = (
+            model_energy(model, Y[0]) if isinstance(model, HamiltonianRegressor)
+            and np.isfinite(Y[0]).all() else np.nan
+        )
+        rows.append(row)
+
+    for name, cls, methods in (("SP", HamiltonianRegressor, ("rk4", "avf")),
+                               ("non-SP", VectorFieldRegressor, ("rk4",))):
+        fit_s, model = C.best_time(lambda: cls(scene.degree).fit(Xt), args.repeats)
+        for method in methods:
+            sim_s = time_simulation(model, u0, t, method, args.repeats)
+            Y, fail_time = C.rollout(model, x0, t, method)
+            add(f"{name}-{method.upper()}", model, deriv_s + fit_s, sim_s, Y, fail_time,
+                int(np.count_nonzero(model.coef_)), float(model.cond_))
+
+    if ps is None:
+        return rows
+    threshold, scores = C.tune_sindy_threshold(ps, Xt, scene.degree, scene.dt,
+                                               THRESHOLDS[::2] if args.quick else THRESHOLDS)
+    fit_s, model = C.best_time(lambda: C.fit_sindy(ps, Xt, scene.degree, threshold, scene.dt),
+                               args.repeats)
+    field = C.SindyField(model, np.concatenate(C.split_layout(Xt)[0])[:200])
+    cond = C.design_condition(model, Xt)
+    Y, fail_time = C.rollout(field, x0, t)
+    note = f"threshold={threshold:g} (held-out MSE " + ", ".join(
+        f"{k:g}: {v:.3g}" for k, v in scores.items()) + ")"
+    if args.quick:
+        # predict costs ~3 ms a call: too slow for a smoke run, so time the
+        # (identical) vectorized evaluation instead and say so.
+        sim_s, _ = C.best_time(lambda: C.rk4_rollout(field, u0, t), args.repeats)
+        note += "; quick: timed vectorized RK4, not predict"
+    else:
+        sim_s, (Y_predict, _) = C.best_time(
+            lambda: C.rk4_rollout(lambda y: np.asarray(model.predict(y)), u0, t), 1)
+        gap = np.nanmax(np.abs(Y_predict[0] - Y[0])) if np.isfinite(Y[0]).any() else 0.0
+        note += f"; |RK4(predict) - RK4(vectorized)| = {gap:.1e}"
+    add("PySINDy-RK4", None, deriv_s + fit_s, sim_s, Y, fail_time, field.n_params, cond, note)
+    # The same model and RK4 without predict's per-call overhead: what the
+    # model itself costs, to separate it from the API.
+    rows[-1]["sim_vectorized_s"], _ = C.best_time(lambda: C.rk4_rollout(field, u0, t),
+                                                  args.repeats)
+
+    if not args.quick:
+        start = time.perf_counter()
+        Y_own = np.asarray(model.simulate(u0, t))
+        sim_s = time.perf_counter() - start
+        Y = np.full((x0.shape[0],) + Y.shape[1:], np.nan)
+        Y[0, : Y_own.shape[0]] = Y_own  # solve_ivp stops early on failure
+        fail_time = np.full(x0.shape[0], np.nan)
+        fail_time[0] = t[Y_own.shape[0]] if Y_own.shape[0] < t.size else np.inf
+        row_note = f"threshold={threshold:g}; its simulate(); u0* only"
+        add("PySINDy-LSODA", None, deriv_s + fit_s, sim_s, Y, fail_time, field.n_params, cond,
+            row_note)
+        for key in ("fresh_err_T10", "fresh_err_T20", "fresh_failed"):
+            rows[-1][key] = np.nan  # not run from fresh states (seconds per trajectory)
+    return rows
+
+
+def ratios(rows):
+    """Same-run ratios per scene: < 1 means SP is faster / more accurate."""
+    out = []
+    scenes = dict.fromkeys(r["scene"] for r in rows)
+    for scene in scenes:
+        by = {r["method"]: r for r in rows if r["scene"] == scene}
+
+        def ratio(label, a, b, key):
+            if a in by and b in by:
+                with np.errstate(all="ignore"):
+                    value = np.float64(by[a][key]) / np.float64(by[b][key])
+                out.append(dict(scene=scene, ratio=label, value=float(value)))
+
+        ratio("fit: SP / non-SP", "SP-RK4", "non-SP-RK4", "fit_s")
+        ratio("fit: SP / PySINDy", "SP-RK4", "PySINDy-RK4", "fit_s")
+        ratio("simulate: SP-AVF / SP-RK4", "SP-AVF", "SP-RK4", "sim_s")
+        ratio("simulate: SP-RK4 / non-SP-RK4", "SP-RK4", "non-SP-RK4", "sim_s")
+        ratio("simulate: SP-RK4 / PySINDy-RK4(predict)", "SP-RK4", "PySINDy-RK4", "sim_s")
+        ratio("simulate: SP-RK4 / PySINDy-LSODA", "SP-RK4", "PySINDy-LSODA", "sim_s")
+        if "PySINDy-RK4" in by and "SP-RK4" in by:
+            out.append(dict(scene=scene, ratio="simulate: SP-RK4 / PySINDy-RK4(vectorized)",
+                            value=by["SP-RK4"]["sim_s"] / by["PySINDy-RK4"]["sim_vectorized_s"]))
+        ratio("err T=20 u0*: SP-RK4 / non-SP", "SP-RK4", "non-SP-RK4", "err_T20")
+        ratio("err T=20 u0*: SP-RK4 / PySINDy-RK4", "SP-RK4", "PySINDy-RK4", "err_T20")
+        ratio("err T=20 fresh: SP-RK4 / non-SP", "SP-RK4", "non-SP-RK4", "fresh_err_T20")
+        ratio("err T=20 fresh: SP-RK4 / PySINDy-RK4", "SP-RK4", "PySINDy-RK4", "fresh_err_T20")
+    return out
+
+
+MARKERS = {"SP-RK4": "o", "SP-AVF": "s", "non-SP-RK4": "^", "PySINDy-RK4": "D",
+           "PySINDy-LSODA": "v"}
+
+
+def plot(rows, path):
+    """Error against total time (fit + simulate), log-log; failures marked."""
+    scenes = list(dict.fromkeys(r["scene"] for r in rows))
+    colors = dict(zip(scenes, plt.cm.tab10.colors))
+    fig, axes = plt.subplots(1, 2, figsize=(15, 5.2), sharey=True)
+    for ax, key, title in ((axes[0], "err_T20", "from the paper's u0*"),
+                           (axes[1], "fresh_err_T20", "median over fresh initial states")):
+        finite = [r[key] for r in rows if np.isfinite(r[key]) and r[key] > 0]
+        top = 10 ** np.ceil(np.log10(max(finite))) * 3 if finite else 10.0
+        for r in rows:
+            x, y = r["total_s"], r[key]
+            if not np.isfinite(x) or np.isnan(y):
+                continue  # not run (e.g. LSODA from fresh states)
+            color = colors[r["scene"]]
+            if np.isinf(y):
+                ax.scatter(x, top, marker="x", s=90, color=color, linewidths=2.5, zorder=3)
+                ax.annotate("failed", (x, top), textcoords="offset points", xytext=(4, 4),
+                            fontsize=7, color=color)
+            else:
+                ax.scatter(x, y, marker=MARKERS.get(r["method"], "o"), s=60, color=color,
+                           edgecolors="k", linewidths=0.5, zorder=3)
+        ax.axhline(top, color="0.6", lw=0.8, ls=":")
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_xlabel("fit + simulate time to T=20 [s] (log)")
+        ax.set_title(f"relative error on [0, 20], {title}", fontsize=10)
+        ax.grid(True, which="both", alpha=0.3)
+    axes[0].set_ylabel("relative trajectory error (log); x at the top = failed")
+    method_handles = [plt.Line2D([], [], marker=m, ls="", color="0.3", label=k)
+                      for k, m in MARKERS.items() if any(r["method"] == k for r in rows)]
+    scene_handles = [plt.Line2D([], [], marker="o", ls="", color=colors[s], label=s)
+                     for s in scenes]
+    fig.legend(handles=method_handles + scene_handles, fontsize=8, loc="center right")
+    fig.suptitle("Speed vs accuracy (lower left is better); one run, BLAS pinned to 1 thread",
+                 fontsize=11)
+    fig.tight_layout(rect=(0, 0, 0.86, 1))
+    fig.savefig(path, dpi=120)
+    plt.close(fig)
+
+
+def main(argv=None):
+    args = parse_args(argv)
+    args.repeats = args.repeats or (1 if args.quick else 3)
+    args.n_fresh = args.n_fresh if args.n_fresh is not None else (2 if args.quick else 8)
+    args.output.mkdir(parents=True, exist_ok=True)
+    ps, reason = (None, "disabled by --no-sindy") if args.no_sindy else C.sindy_status()
+    start = time.perf_counter()
+    print(f"# bench_speed_accuracy {'--quick ' if args.quick else ''}"
+          f"{datetime.datetime.now().isoformat(timespec='seconds')}; "
+          f"python {platform.python_version()}, numpy {np.__version__}, "
+          f"{os.cpu_count()} cores, BLAS threads pinned to 1")
+    if ps is None:
+        print(f"# PySINDy rows skipped: {reason}")
+    else:
+        print(f"# baseline: {reason}")
+    rows = []
+    for scene in (QUICK_SCENES if args.quick else SCENES):
+        print(f"# scene {scene.label}: M={scene.n_trajectories}, J={scene.n_intervals}, "
+              f"dt={scene.dt}, noise={scene.noise}, degree={scene.degree}", flush=True)
+        rows += run_scene(scene, args, ps)
+    ratio_rows = ratios(rows)
+    C.write_csv(args.output / "speed_accuracy.csv", rows, COLUMNS)
+    C.write_csv(args.output / "speed_ratios.csv", ratio_rows, RATIO_COLUMNS)
+    plot(rows, args.output / "speed_vs_accuracy.png")
+    print()
+    C.print_table(rows, ["scene", "method", "n_params", "cond", "fit_s", "sim_s",
+                         "err_T10", "err_T20", "fresh_err_T20", "fresh_failed", "energy_drift",
+                         "model_energy_drift"])
+    print()
+    C.print_table(ratio_rows, RATIO_COLUMNS)
+    notes = [(r["scene"], r["method"], r["note"]) for r in rows if r.get("note")]
+    for scene, method, note in notes:
+        print(f"# {scene} / {method}: {note}")
+    print(f"# wrote {args.output}/speed_accuracy.csv, speed_ratios.csv, speed_vs_accuracy.png "
+          f"in {time.perf_counter() - start:.0f} s")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

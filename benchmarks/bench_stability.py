@@ -1,0 +1,576 @@
+"""Stability: where SP, non-SP and PySINDy break, with the failures recorded, not hidden.
+
+Five experiments, each a sweep of one condition under which learning methods
+fail; every method is fitted on the same data and simulated from the same
+initial states (the paper's ``u0*`` and fresh states whose *true* solution
+stays in the domain, so a failure is the model's, not the truth's):
+
+``noise``
+    Henon-Heiles (M = 500, J = 40 so that the paper's Q = 5 de-noising
+    applies, n = 3), relative noise 0 ... 20 % (finite differences when clean).
+    Not the pendulum: its J = 40 trajectories leave the paper's box and inflate
+    the fitted domain, so its error is ~0.5 at T = 20 even on clean data and
+    noise is not what breaks it.
+``n_trajectories``
+    Single pendulum, clean, J = 2, n = 6, M from 1000 down to below the number
+    of unknowns (SP: 27 unknowns, 6 equations per trajectory; non-SP and
+    PySINDy: 28 per component, 3 per trajectory). Records ``cond_`` and the
+    sample size the paper's Corollary 3.4 asks for.
+``degree``
+    Single pendulum, clean, J = 2, M = 30: degree 2 ... 14, i.e. up to and past
+    the point where the data no longer determine the model.
+``long_horizon``
+    Henon-Heiles at 5 % and 20 % noise (as in ``noise``), simulated to
+    T = 200 from states whose true orbits stay bounded: when does each learned
+    trajectory leave the training box (escape) or become non-finite
+    (``SimulationError``, recorded as the failure time)? Errors at T = 200 are
+    O(1) for every method (the orbits are chaotic); survival is the measure.
+``cherry_blowup``
+    Cherry's system (paper setting), whose true solution from ``u0*`` blows up
+    at t ~ 28: the blow-up time of each learned model (first ``|u| > 10``) and
+    its failure time, against the truth's.
+
+Error = median over the test states of the relative trajectory error on
+``[0, horizon]``; a rollout that fails before the horizon counts as ``inf``.
+
+Outputs, in ``--output`` (default ``benchmarks/results/``): ``stability.csv``
+and ``stability.png``. ``python benchmarks/bench_stability.py`` takes about
+3-4 minutes on 2 cores with pysindy installed; ``--quick`` is a < 30 s smoke run.
+"""
+
+import os
+
+# Pin BLAS before numpy is imported (see bench_speed_accuracy.py).
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ[_var] = "1"
+
+import argparse  # noqa: E402
+import datetime  # noqa: E402
+import itertools  # noqa: E402
+import math  # noqa: E402
+import sys  # noqa: E402
+import time  # noqa: E402
+import warnings  # noqa: E402
+from pathlib import Path  # noqa: E402
+
+import matplotlib  # noqa: E402
+
+matplotlib.use("Agg")
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+from numpy.polynomial import legendre  # noqa: E402
+
+import _common as C  # noqa: E402
+from sk_hamiltonian import HamiltonianRegressor, VectorFieldRegressor  # noqa: E402
+from sk_hamiltonian.datasets import load_system  # noqa: E402
+
+COLUMNS = [
+    "experiment", "method", "param", "value", "status", "error", "horizon", "n_test",
+    "n_failed", "fail_time", "n_escaped", "escape_time", "blowup_time", "cond", "n_params",
+    "n_equations", "note",
+]
+METHODS = ("SP-RK4", "SP-AVF", "non-SP-RK4", "PySINDy-RK4")
+STYLE = {
+    "SP-RK4": dict(color="tab:blue", marker="o"),
+    "SP-AVF": dict(color="tab:cyan", marker="s", ls="--", mfc="none"),
+    "non-SP-RK4": dict(color="tab:orange", marker="^"),
+    "PySINDy-RK4": dict(color="tab:green", marker="D"),
+    "truth": dict(color="k", marker=""),
+}
+# PySINDy's STLSQ threshold in the sweeps. Tuning it at every point would cost
+# minutes; bench_speed_accuracy's held-out rule picked 0.001-0.1 on the paper's
+# scenes (0.01 on the noisy pendulum), and 0 would just be the non-SP fit in
+# a monomial basis.
+SINDY_THRESHOLD = 0.01
+# Corollary 3.4 with r = 1: K_N <= lambda K / log K, lambda = (3 log 1.5 - 1) / 4.
+COROLLARY_R = 1.0
+
+
+def parse_args(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--quick", action="store_true", help="small smoke run (< 30 s)")
+    parser.add_argument("--output", type=Path,
+                        default=Path(__file__).resolve().parent / "results",
+                        help="directory for CSV and PNG outputs")
+    parser.add_argument("--no-sindy", action="store_true", help="skip PySINDy even if installed")
+    return parser.parse_args(argv)
+
+
+# ---------------------------------------------------------------- Corollary 3.4
+def _gradient_basis(X, domain, powers):
+    """Gradients (k, m, N) of tensor Legendre polynomials on ``domain``."""
+    low, high = domain[:, 0], domain[:, 1]
+    xi = (2 * X - (low + high)) / (high - low)
+    degree = int(powers.max())
+    m = X.shape[1]
+    values = np.stack([legendre.legvander(xi[:, i], degree) for i in range(m)], axis=1)
+    slopes = np.zeros_like(values)
+    for k in range(1, degree + 1):
+        unit = np.zeros(k + 1)
+        unit[k] = 1.0
+        slopes[:, :, k] = legendre.legval(xi, legendre.legder(unit))
+    cols = np.arange(m)[:, None]
+    V, D = values[:, cols, powers.T], slopes[:, cols, powers.T]
+    grads = np.empty((X.shape[0], m, powers.shape[0]))
+    for i in range(m):
+        grads[:, i] = D[:, i] * np.prod(np.delete(V, i, axis=1), axis=1) * 2 / (high[i] - low[i])
+    return grads
+
+
+def christoffel_sup(domain, degree, grid=41):
+    """``K_N = sup_x sum_j |grad phi_j(x)|^2`` for a grad-orthonormal basis (uniform measure).
+
+    The paper's (3.12); basis-independent, so computed from the Legendre basis
+    and the exact Gram matrix of its gradients (Gauss quadrature), then
+    maximized over a grid of the box (the maximum sits at its corners).
+    """
+    domain = np.asarray(domain, dtype=float)
+    m = domain.shape[0]
+    powers = np.array([p for p in itertools.product(range(degree + 1), repeat=m)
+                       if 0 < sum(p) <= degree])
+    nodes, weights = legendre.leggauss(degree + 1)
+    idx = np.array(list(itertools.product(range(degree + 1), repeat=m)))
+    points = domain.mean(axis=1) + 0.5 * (domain[:, 1] - domain[:, 0]) * nodes[idx]
+    w = np.prod(weights[idx] / 2, axis=1)
+    G = _gradient_basis(points, domain, powers)
+    gram_inv = np.linalg.inv(np.einsum("k,kiN,kiM->NM", w, G, G))
+    axes = [np.linspace(lo, hi, grid) for lo, hi in domain]
+    X = np.array(list(itertools.product(*axes)))
+    G = _gradient_basis(X, domain, powers)
+    return float(np.einsum("kiN,NM,kiM->k", G, gram_inv, G).max())
+
+
+def corollary_pairs(k_n, r=COROLLARY_R):
+    """Smallest number of state pairs K with ``K_N <= lambda K / log K``."""
+    lam = (3 * math.log(1.5) - 1) / (2 + 2 * r)
+    K = 3.0
+    while K / math.log(K) < k_n / lam:
+        K *= 1.005
+    return K
+
+
+# ---------------------------------------------------------------- fitting and testing
+class Unfit(Exception):
+    """A method could not be fitted (e.g. fewer equations than unknowns)."""
+
+
+def fit_all(scene, Xt, ps):
+    """Fit each method; returns {method: (model, cond, n_params, n_equations) or Unfit}."""
+    K = sum(len(s) for s in C.split_layout(Xt)[0])
+    m = Xt[0].shape[1] // 3
+    fitted = {}
+    for name, cls in (("SP", HamiltonianRegressor), ("non-SP", VectorFieldRegressor)):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # IllConditionedWarning: cond_ is recorded
+            try:
+                model = cls(scene.degree).fit(Xt)
+                info = (model, float(model.cond_), int(model.coef_.size),
+                        K * m if name == "SP" else K)
+            except ValueError as error:
+                info = Unfit(str(error).split(":")[0])
+        for method in ("rk4", "avf") if name == "SP" else ("rk4",):
+            fitted[f"{name}-{method.upper()}"] = (info, method)
+    if ps is not None:
+        model = C.fit_sindy(ps, Xt, scene.degree, SINDY_THRESHOLD, scene.dt)
+        field = C.SindyField(model, np.concatenate(C.split_layout(Xt)[0])[:200])
+        fitted["PySINDy-RK4"] = ((field, C.design_condition(model, Xt), field.n_params, K),
+                                 "rk4")
+    return fitted
+
+
+def training_box(Xt):
+    """Bounding box of the training states: the domain of every method.
+
+    It is what our regressors use when ``domain=None``; PySINDy has no domain,
+    so "escaped" means the same box for all.
+    """
+    X = np.concatenate(C.split_layout(Xt)[0])
+    return np.column_stack([X.min(axis=0), X.max(axis=0)])
+
+
+def evaluate(fitted, x0, truth, t, horizon, base, box):
+    """One row per method: median error over the test states, failures, escapes."""
+    rows, curves = [], {}
+    for name, (info, method) in fitted.items():
+        row = dict(base, method=name, horizon=horizon, n_test=x0.shape[0])
+        if isinstance(info, Unfit):
+            rows.append(dict(row, status="unfit", error=np.nan, note=str(info)))
+            continue
+        model, cond, n_params, n_eq = info
+        Y, fail_time = C.rollout(model, x0, t, method)
+        err = C.relative_error(Y, truth, t, horizon)
+        escape = C.escape_time(Y, t, box)
+        n_failed = int(np.isfinite(fail_time).sum())
+        row.update(
+            status="failed" if n_failed else ("escaped" if np.isfinite(escape).any() else "ok"),
+            error=float(np.median(err)), n_failed=n_failed,
+            fail_time=float(fail_time.min()), n_escaped=int(np.isfinite(escape).sum()),
+            escape_time=float(escape.min()), cond=cond, n_params=n_params, n_equations=n_eq,
+        )
+        rows.append(row)
+        curves[name] = (Y, fail_time, escape)
+    return rows, curves
+
+
+# ---------------------------------------------------------------- experiments
+def sweep(experiment, param, values, make_scene, ps, cfg, extra=None):
+    """Fit and test every method at every value of one parameter."""
+    rows = []
+    tests = {}
+    for value in values:
+        scene = make_scene(value)
+        system, Xt, _ = C.make_data(scene)
+        if scene.system not in tests:
+            tests[scene.system] = C.test_states(system, cfg["n_fresh"], cfg["horizon"], cfg["h"])
+        x0, t, truth = tests[scene.system]
+        base = dict(experiment=experiment, param=param, value=value)
+        if extra:
+            base.update(extra(value))
+        new, _ = evaluate(fit_all(scene, Xt, ps), x0, truth, t, cfg["horizon"], base,
+                          training_box(Xt))
+        rows += new
+        print(f"  {param}={value}: " + ", ".join(
+            f"{r['method']} {C.fmt(r['error'])}{'' if r['status'] == 'ok' else ' ' + r['status']}"
+            for r in new), flush=True)
+    return rows
+
+
+def long_horizon(ps, cfg):
+    """Survival of learned Henon-Heiles trajectories over a long horizon."""
+    rows, curves = [], {}
+    for noise in cfg["long_noises"]:
+        scene = C.Scene(f"Henon-Heiles {noise:.0%}", "henon_heiles", 3, cfg["M"], 40,
+                        noise=noise)
+        system, Xt, _ = C.make_data(scene)
+        x0, t, truth = C.test_states(system, cfg["n_fresh_long"], cfg["long_horizon"],
+                                     cfg["h_long"])
+        base = dict(experiment="long_horizon", param="noise", value=noise)
+        new, c = evaluate(fit_all(scene, Xt, ps), x0, truth, t, cfg["long_horizon"], base,
+                          training_box(Xt))
+        rows += new
+        curves[noise] = (t, truth, c)
+        print(f"  noise={noise}: " + ", ".join(
+            f"{r['method']} failed {r.get('n_failed', '-')}/{r['n_test']} "
+            f"escaped {r.get('n_escaped', '-')}" for r in new), flush=True)
+    return rows, curves
+
+
+def cherry_blowup(ps, cfg):
+    """Blow-up times of the learned Cherry systems against the truth's."""
+    scene = C.Scene("Cherry", "cherry", 3, cfg["M"], 2)
+    system, Xt, _ = C.make_data(scene)
+    t = np.arange(0.0, cfg["cherry_horizon"] + cfg["h"] / 2, cfg["h"])
+    u0 = system.initial_state[None]
+    truth, truth_fail = C.reference(system, u0, t)
+    norms = {"truth": (np.linalg.norm(truth[0], axis=-1), truth_fail[0])}
+
+    def blowup(Y):
+        big = np.linalg.norm(Y, axis=-1) > 10
+        return float(t[np.argmax(big)]) if big.any() else np.inf
+
+    t_true = blowup(truth[0])
+    rows = [dict(experiment="cherry_blowup", method="truth", param="u0", value="u0*",
+                 status="blows up", blowup_time=t_true, fail_time=float(truth_fail[0]),
+                 horizon=t[-1], n_test=1)]
+    for name, (info, method) in fit_all(scene, Xt, ps).items():
+        model, cond, n_params, n_eq = info
+        Y, fail_time = C.rollout(model, u0, t, method)
+        # Error only where the truth is still tame (|u| < 1 up to t = 25).
+        window = t <= 25.0
+        err = C.relative_error(Y[:, window], truth[:, window], t[window], 25.0)[0]
+        t_blow = blowup(Y[0])
+        rows.append(dict(experiment="cherry_blowup", method=name, param="u0", value="u0*",
+                         status="blows up" if np.isfinite(t_blow) else "bounded",
+                         error=float(err), horizon=25.0, n_test=1, blowup_time=t_blow,
+                         fail_time=float(fail_time[0]), cond=cond, n_params=n_params,
+                         n_equations=n_eq,
+                         note=f"blow-up {t_blow - t_true:+.2f} vs truth" if np.isfinite(t_blow)
+                         else "no blow-up by the horizon"))
+        norms[name] = (np.linalg.norm(Y[0], axis=-1), fail_time[0])
+    for r in rows:
+        print(f"  {r['method']}: |u|>10 at t={C.fmt(r['blowup_time'], 4)}, "
+              f"non-finite at t={C.fmt(r['fail_time'], 4)}", flush=True)
+    return rows, (t, norms)
+
+
+# ---------------------------------------------------------------- chart
+def _mark_failures(ax, rows, x_key, top):
+    """Mark what went wrong at each point instead of dropping it.
+
+    * all or most rollouts failed (median error is inf): bold x in the top
+      band, one row per method, with the first failure time written below;
+    * some rollouts failed: bold x over the point, with "k/n failed";
+    * a rollout left the training box (escaped) without failing: open ring;
+    * the method could not be fitted at all: thin x in the top band.
+    """
+    for r in rows:
+        style = STYLE[r["method"]]
+        x = r[x_key]
+        band = top * 0.7 ** METHODS.index(r["method"])  # one row per method
+        if r["status"] == "unfit":
+            ax.scatter(x, band, marker="x", s=45, color=style["color"], linewidths=0.9)
+        elif not np.isfinite(r["error"]):
+            ax.scatter(x, band, marker="x", s=80, color=style["color"], linewidths=2.4)
+            ax.annotate(f"t={r['fail_time']:.2g}", (x, band), textcoords="offset points",
+                        xytext=(-2, -4), fontsize=5.5, color=style["color"], rotation=90,
+                        ha="center", va="top")
+        elif r["status"] == "failed":
+            ax.scatter(x, r["error"], marker="x", s=80, color=style["color"], linewidths=2.4,
+                       zorder=4)
+            ax.annotate(f"{r['n_failed']}/{r['n_test']} failed", (x, r["error"]),
+                        textcoords="offset points", xytext=(4, 4), fontsize=5.5,
+                        color=style["color"])
+        elif r["status"] == "escaped":
+            ax.scatter(x, r["error"], marker="o", s=130, facecolors="none",
+                       edgecolors=style["color"], linewidths=1.2, zorder=4)
+
+
+def _error_panel(ax, rows, x_key, xlabel, title, logx=False):
+    finite = [r["error"] for r in rows if np.isfinite(r["error"]) and r["error"] > 0]
+    top = 10 ** np.ceil(np.log10(max(finite))) * 10 if finite else 10.0
+    for method in METHODS:
+        sub = [r for r in rows if r["method"] == method]
+        if not sub:
+            continue
+        ok = [r for r in sub if np.isfinite(r["error"])]
+        ax.plot([r[x_key] for r in ok], [r["error"] for r in ok], label=method,
+                lw=1.2, ms=5, **STYLE[method])
+        _mark_failures(ax, sub, x_key, top)
+    ax.axhline(top * 0.7 ** len(METHODS), color="0.6", lw=0.8, ls=":")
+    ax.set_yscale("log")
+    if logx:
+        ax.set_xscale("log")
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel("median rel. error on [0, 20]")
+    ax.set_title(title, fontsize=9.5)
+    ax.grid(True, which="both", alpha=0.3)
+
+
+def plot(rows, long_curves, cherry, cor, cfg, path):
+    fig, axes = plt.subplots(2, 3, figsize=(17, 10))
+    ax = axes[0, 0]
+    sub = [r for r in rows if r["experiment"] == "noise"]
+    for r in sub:
+        r["pct"] = 100 * r["value"]
+    _error_panel(ax, sub, "pct", "relative noise [%]",
+                 f"noise: Henon-Heiles, M={cfg['M']}, J=40, n=3")
+    ax.legend(fontsize=7, loc="lower right")
+
+    ax = axes[0, 1]
+    sub = [r for r in rows if r["experiment"] == "n_trajectories"]
+    _error_panel(ax, sub, "value", "trajectories M (J=2, K=3M state pairs)",
+                 "fewer trajectories: pendulum clean, n=6", logx=True)
+    ax.axvline(27 / 6, color="tab:blue", ls="--", lw=0.8)
+    ax.axvline(28 / 3, color="tab:orange", ls="--", lw=0.8)
+    ax.text(27 / 6, 0.02, " SP: M=4.5 equations=unknowns", rotation=90, fontsize=6.5,
+            color="tab:blue", transform=ax.get_xaxis_transform())
+    ax.text(28 / 3, 0.02, " non-SP: M=9.3", rotation=90, fontsize=6.5, color="tab:orange",
+            transform=ax.get_xaxis_transform())
+    if cor and cor["M"] <= 3 * max(r["value"] for r in sub):
+        ax.axvline(cor["M"], color="k", ls=":", lw=0.8)
+
+    ax = axes[0, 2]
+    for method in METHODS:
+        pts = [(r["value"], r["cond"]) for r in sub
+               if r["method"] == method and np.isfinite(r.get("cond", np.nan))]
+        if pts:
+            ax.plot(*zip(*pts), label=method, lw=1.2, ms=5, **STYLE[method])
+    deg = [r for r in rows if r["experiment"] == "degree"]
+    ax.set_xscale("log")
+    ax.set_yscale("log")
+    ax.set_xlabel("trajectories M (J=2)")
+    ax.set_ylabel("cond of the column-scaled design")
+    title = "conditioning vs M (pendulum clean, n=6)"
+    if cor:
+        title += (f"\nCor. 3.4 (r=1): K_N={cor['K_N']:.0f}, needs K>={cor['K']:.2g} pairs "
+                  f"(M>={cor['M']:.2g})")
+    ax.set_title(title, fontsize=9.5)
+    ax.grid(True, which="both", alpha=0.3)
+    ax.legend(fontsize=7)
+
+    ax = axes[1, 0]
+    _error_panel(ax, deg, "value", "polynomial degree n",
+                 "degree too high for the data: pendulum clean, M=30, J=2")
+    twin = ax.twinx()
+    for method in ("SP-RK4", "non-SP-RK4"):
+        pts = [(r["value"], r["cond"]) for r in deg
+               if r["method"] == method and np.isfinite(r.get("cond", np.nan))]
+        if pts:
+            twin.plot(*zip(*pts), ls=":", lw=1, color=STYLE[method]["color"])
+    twin.set_yscale("log")
+    twin.set_ylabel("cond (dotted)", fontsize=8)
+
+    ax = axes[1, 1]
+    for noise, (t, truth, curves) in long_curves.items():
+        for method, (Y, fail_time, escape) in curves.items():
+            # Survival: fraction of test states still finite and inside the domain.
+            alive = (escape[:, None] > t[None]).mean(axis=0)
+            ls = "-" if noise == min(long_curves) else "--"
+            ax.plot(t, alive, ls=ls, lw=1.3, color=STYLE[method]["color"],
+                    label=f"{method}, {noise:.0%} noise")
+            for ft in fail_time[np.isfinite(fail_time)]:
+                ax.scatter(ft, -0.04, marker="x", s=40, color=STYLE[method]["color"],
+                           clip_on=False)
+    summary = [f"{r['method']:<12s} {r['value']:>4.0%}: failed {r['n_failed']}/{r['n_test']}, "
+               f"escaped {r['n_escaped']}/{r['n_test']}"
+               for r in rows if r["experiment"] == "long_horizon" and r["status"] != "unfit"]
+    ax.text(0.98, 0.35, "\n".join(summary), transform=ax.transAxes, fontsize=6.5, ha="right",
+            va="bottom", family="monospace",
+            bbox=dict(facecolor="white", alpha=0.85, edgecolor="0.7"))
+    ax.set_ylim(-0.08, 1.05)
+    ax.set_xlabel("t")
+    ax.set_ylabel("fraction of test states still inside the domain")
+    noises = " / ".join(f"{n:.0%}" for n in sorted(long_curves))
+    ax.set_title(f"long horizon: Henon-Heiles, M={cfg['M']}, J=40, noise {noises} "
+                 f"(solid / dashed);\n"
+                 "x on the axis = non-finite (SimulationError) at that t", fontsize=9.5)
+    ax.legend(fontsize=6.5, loc="center left")
+    ax.grid(True, alpha=0.3)
+
+    ax = axes[1, 2]
+    if cherry is not None:
+        t, norms = cherry
+        for method, (norm, fail) in norms.items():
+            style = STYLE.get(method, STYLE["truth"])
+            ax.plot(t, norm, lw=1.3 if method != "truth" else 2.2, color=style["color"],
+                    ls="-" if method != "truth" else "--", label=method)
+            if np.isfinite(fail):
+                ax.scatter(fail, 1e3, marker="x", s=80, color=style["color"], linewidths=2)
+        lines = [f"{r['method']}: |u|>10 at {C.fmt(r['blowup_time'], 4, 'never')}, "
+                 f"non-finite at {C.fmt(r['fail_time'], 4, 'never')}"
+                 for r in rows if r["experiment"] == "cherry_blowup"]
+        ax.text(0.02, 0.6, "\n".join(lines), transform=ax.transAxes, fontsize=7,
+                va="top", family="monospace",
+                bbox=dict(facecolor="white", alpha=0.85, edgecolor="0.7"))
+        ax.axhline(10, color="0.5", lw=0.8, ls=":")
+        ax.set_ylim(1e-2, 3e3)
+        ax.set_yscale("log")
+        ax.set_xlabel("t")
+        ax.set_ylabel("|u(t)|")
+        ax.set_title("Cherry: true blow-up vs learned (x = non-finite)", fontsize=9.5)
+        ax.legend(fontsize=7, loc="upper left")
+        ax.grid(True, which="both", alpha=0.3)
+    fig.suptitle("Where the methods fail (failures marked, not dropped)", fontsize=12)
+    fig.text(0.5, 0.004,
+             "Error panels: above the dotted line, bold x = most rollouts failed (non-finite; "
+             "t = first failure), thin x = could not be fitted (fewer equations than unknowns); "
+             "on a curve, x = some rollouts failed (k/n), o = a rollout left the training box.",
+             ha="center", va="bottom", fontsize=8.5, color="0.25")
+    fig.tight_layout(rect=(0, 0.02, 1, 1))
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
+# ---------------------------------------------------------------- summary
+def cell(r):
+    """One table cell: the error, or what went wrong."""
+    if r["status"] == "unfit":
+        return "unfit"
+    if not np.isfinite(r["error"]):
+        return f"FAIL t={C.fmt(r['fail_time'], 3)}"
+    text = C.fmt(r["error"])
+    if r["status"] == "failed":
+        text += f" ({r['n_failed']}/{r['n_test']} fail)"
+    elif r["status"] == "escaped":
+        text += " (esc)"
+    return text
+
+
+def pivot(rows, experiment, with_cond=False):
+    """Parameter values down, methods across: what the README pastes."""
+    sub = [r for r in rows if r["experiment"] == experiment]
+    methods = [m for m in METHODS if any(r["method"] == m for r in sub)]
+    table = []
+    for value in dict.fromkeys(r["value"] for r in sub):
+        by = {r["method"]: r for r in sub if r["value"] == value}
+        line = {"param": f"{sub[0]['param']}={value:g}"}
+        line.update({m: cell(by[m]) for m in methods if m in by})
+        if with_cond:
+            line["cond SP / non-SP / PySINDy"] = " / ".join(
+                C.fmt(by[m].get("cond", np.nan), 2) if m in by else "-"
+                for m in ("SP-RK4", "non-SP-RK4", "PySINDy-RK4") if m in methods)
+        table.append(line)
+    columns = ["param"] + methods + (["cond SP / non-SP / PySINDy"] if with_cond else [])
+    C.print_table(table, columns)
+
+
+# ---------------------------------------------------------------- main
+def main(argv=None):
+    args = parse_args(argv)
+    args.output.mkdir(parents=True, exist_ok=True)
+    ps, reason = (None, "disabled by --no-sindy") if args.no_sindy else C.sindy_status()
+    if args.quick:
+        cfg = dict(M=60, n_fresh=1, horizon=20.0, h=0.02, noises=(0.0, 0.2),
+                   Ms=(300, 10, 4), degrees=(3, 8, 13), long_noises=(0.2,),
+                   n_fresh_long=1, long_horizon=10.0, h_long=0.05, cherry_horizon=30.0)
+    else:
+        cfg = dict(M=500, n_fresh=4, horizon=20.0, h=0.01,
+                   noises=(0.0, 0.01, 0.02, 0.05, 0.1, 0.2),
+                   Ms=(1000, 300, 100, 50, 30, 20, 15, 12, 10, 8, 6, 5, 4),
+                   degrees=tuple(range(2, 15)), long_noises=(0.05, 0.2),
+                   n_fresh_long=8, long_horizon=200.0, h_long=0.02, cherry_horizon=40.0)
+    start = time.perf_counter()
+    print(f"# bench_stability {'--quick ' if args.quick else ''}"
+          f"{datetime.datetime.now().isoformat(timespec='seconds')}; numpy {np.__version__}, "
+          f"{os.cpu_count()} cores, BLAS threads pinned to 1")
+    print(f"# PySINDy rows skipped: {reason}" if ps is None
+          else f"# baseline: {reason}, STLSQ threshold {SINDY_THRESHOLD}")
+    rows = []
+
+    print("# noise sweep", flush=True)
+    rows += sweep("noise", "noise", cfg["noises"],
+                  lambda v: C.Scene("Henon-Heiles", "henon_heiles", 3, cfg["M"], 40, noise=v),
+                  ps, cfg)
+
+    k_n = christoffel_sup(load_system("single_pendulum").domain, 6)
+    K = corollary_pairs(k_n)
+    cor = dict(K_N=k_n, K=K, M=K / 3)
+    print(f"# fewer trajectories (Corollary 3.4, r=1: K_N={k_n:.1f} for n=6 -> "
+          f"K >= {K:.0f} pairs, M >= {K / 3:.0f} at J=2)", flush=True)
+    rows += sweep("n_trajectories", "M", cfg["Ms"],
+                  lambda v: C.Scene("pendulum", "single_pendulum", 6, v, 2), ps, cfg,
+                  extra=lambda v: dict(note=f"K={3 * v} pairs; Cor. 3.4 wants K>={K:.0f}"))
+
+    print("# degree sweep (M=30, J=2)", flush=True)
+    rows += sweep("degree", "degree", cfg["degrees"],
+                  lambda v: C.Scene("pendulum", "single_pendulum", v, 30, 2), ps, cfg)
+
+    print(f"# long horizon T={cfg['long_horizon']:g}", flush=True)
+    new, long_curves = long_horizon(ps, cfg)
+    rows += new
+
+    print(f"# Cherry blow-up, T={cfg['cherry_horizon']:g}", flush=True)
+    new, cherry = cherry_blowup(ps, cfg)
+    rows += new
+
+    for r in rows:
+        for key in COLUMNS:
+            r.setdefault(key, np.nan if key not in ("note", "status") else "")
+    C.write_csv(args.output / "stability.csv", rows, COLUMNS)
+    plot(rows, long_curves, cherry, cor, cfg, args.output / "stability.png")
+    # Summaries; every number is also in stability.csv.
+    for experiment, title, with_cond in (
+        ("noise", "noise (Henon-Heiles): median rel. error on [0, 20]", False),
+        ("n_trajectories", "fewer trajectories (pendulum, J=2, n=6)", True),
+        ("degree", "degree (pendulum, M=30, J=2)", True),
+    ):
+        print(f"\n## {title}")
+        pivot(rows, experiment, with_cond)
+    print(f"\n## long horizon (Henon-Heiles, T={cfg['long_horizon']:g}): failed / escaped "
+          "test states")
+    C.print_table([r for r in rows if r["experiment"] == "long_horizon"],
+                  ["method", "value", "n_test", "n_failed", "fail_time", "n_escaped",
+                   "escape_time", "error"],
+                  ["method", "noise", "n_test", "n_failed", "first_fail_t", "n_escaped",
+                   "first_escape_t", "median_err"])
+    print("\n## Cherry from u0*: blow-up (|u| > 10) and non-finite times")
+    C.print_table([r for r in rows if r["experiment"] == "cherry_blowup"],
+                  ["method", "blowup_time", "fail_time", "error", "n_params"],
+                  ["method", "blowup_t", "nonfinite_t", "err_0_25", "n_params"])
+    print(f"# wrote {args.output}/stability.csv, stability.png in "
+          f"{time.perf_counter() - start:.0f} s")
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

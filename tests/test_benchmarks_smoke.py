@@ -1,0 +1,123 @@
+"""Smoke test of the benchmark scripts: ``--quick`` runs, outputs and their shape.
+
+Speed is not asserted here (the benchmarks report same-run ratios instead).
+PySINDy is blocked on purpose, so the run also checks that the scripts skip the
+optional baseline gracefully wherever pysindy happens to be installed.
+"""
+
+import csv
+import math
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+BENCHMARKS = Path(__file__).resolve().parents[1] / "benchmarks"
+SPEED_COLUMNS = [
+    "scene", "method", "n_params", "cond", "fit_s", "sim_s", "total_s", "sim_vectorized_s",
+    "err_T10", "err_T20", "fresh_err_T10", "fresh_err_T20", "fresh_failed", "n_fresh",
+    "fail_time", "energy_drift", "model_energy_drift", "note",
+]
+STABILITY_COLUMNS = [
+    "experiment", "method", "param", "value", "status", "error", "horizon", "n_test",
+    "n_failed", "fail_time", "n_escaped", "escape_time", "blowup_time", "cond", "n_params",
+    "n_equations", "note",
+]
+
+
+def _read(path):
+    with open(path, newline="") as handle:
+        reader = csv.DictReader(handle)
+        return reader.fieldnames, list(reader)
+
+
+def _finite(row, *keys):
+    return all(math.isfinite(float(row[key])) for key in keys)
+
+
+@pytest.fixture(scope="module")
+def runs(tmp_path_factory):
+    """Run both scripts with --quick, side by side, pysindy made unimportable."""
+    tmp = tmp_path_factory.mktemp("bench")
+    blocker = tmp / "blocker" / "pysindy"
+    blocker.mkdir(parents=True)
+    (blocker / "__init__.py").write_text('raise ImportError("blocked by the smoke test")\n')
+    env = dict(os.environ, MPLBACKEND="Agg")
+    env["PYTHONPATH"] = os.pathsep.join(
+        [str(blocker.parent)] + ([env["PYTHONPATH"]] if env.get("PYTHONPATH") else [])
+    )
+    procs = {}
+    for name in ("bench_speed_accuracy", "bench_stability"):
+        out = tmp / name
+        procs[name] = (out, subprocess.Popen(
+            [sys.executable, str(BENCHMARKS / f"{name}.py"), "--quick", "--output", str(out)],
+            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, env=env,
+        ))
+    results = {}
+    for name, (out, proc) in procs.items():
+        try:
+            stdout, _ = proc.communicate(timeout=240)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+            stdout, _ = proc.communicate()
+            pytest.fail(f"{name} --quick timed out:\n{stdout[-3000:]}")
+        results[name] = (out, proc.returncode, stdout)
+    return results
+
+
+@pytest.mark.slow
+def test_speed_accuracy_quick(runs):
+    out, code, stdout = runs["bench_speed_accuracy"]
+    assert code == 0, stdout[-3000:]
+    assert "PySINDy rows skipped" in stdout
+    for name in ("speed_accuracy.csv", "speed_ratios.csv", "speed_vs_accuracy.png"):
+        assert (out / name).stat().st_size > 0, name
+    assert (out / "speed_vs_accuracy.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+    columns, rows = _read(out / "speed_accuracy.csv")
+    assert columns == SPEED_COLUMNS
+    assert not any(r["method"].startswith("PySINDy") for r in rows)
+    sp = [r for r in rows if r["method"].startswith("SP-")]
+    assert {r["method"] for r in sp} == {"SP-RK4", "SP-AVF"}
+    assert len({r["scene"] for r in sp}) >= 2
+    for r in sp:
+        assert _finite(r, "cond", "fit_s", "sim_s", "total_s", "err_T10", "err_T20",
+                       "fresh_err_T20", "energy_drift", "model_energy_drift"), r
+        assert float(r["fit_s"]) > 0 and float(r["sim_s"]) > 0
+        assert 0 <= float(r["err_T10"]) < 10
+    # The averaged vector field conserves the learned Hamiltonian to round-off.
+    for r in sp:
+        if r["method"] == "SP-AVF":
+            assert float(r["model_energy_drift"]) < 1e-8, r
+
+    columns, ratios = _read(out / "speed_ratios.csv")
+    assert columns == ["scene", "ratio", "value"]
+    assert any(r["ratio"] == "fit: SP / non-SP" and _finite(r, "value") for r in ratios)
+
+
+@pytest.mark.slow
+def test_stability_quick(runs):
+    out, code, stdout = runs["bench_stability"]
+    assert code == 0, stdout[-3000:]
+    assert "PySINDy rows skipped" in stdout
+    assert (out / "stability.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+    columns, rows = _read(out / "stability.csv")
+    assert columns == STABILITY_COLUMNS
+    assert {r["experiment"] for r in rows} == {
+        "noise", "n_trajectories", "degree", "long_horizon", "cherry_blowup"}
+    assert not any(r["method"].startswith("PySINDy") for r in rows)
+    statuses = {r["status"] for r in rows}
+    assert statuses <= {"ok", "failed", "escaped", "unfit", "blows up", "bounded"}
+    # Failures are recorded, not dropped: the quick sweep goes below the number
+    # of unknowns, where no method can be fitted.
+    assert "unfit" in statuses
+    for r in rows:
+        if r["method"] == "SP-RK4" and r["experiment"] == "noise":
+            assert _finite(r, "error", "cond"), r
+        if r["status"] == "failed":
+            assert _finite(r, "fail_time"), r
+    truth = [r for r in rows if r["experiment"] == "cherry_blowup" and r["method"] == "truth"]
+    assert len(truth) == 1 and 27 < float(truth[0]["blowup_time"]) < 29
