@@ -35,7 +35,6 @@ instead of 10. The data and the models are the paper's in both modes.
 import warnings
 
 import matplotlib.pyplot as plt
-import numpy as np
 
 from sk_hamiltonian import (
     DerivativeTransformer,
@@ -45,6 +44,7 @@ from sk_hamiltonian import (
 )
 from sk_hamiltonian import _paper as paper
 from sk_hamiltonian.datasets import PAPER_DT, make_trajectories, single_pendulum
+from sk_hamiltonian.plotting import plot_energy
 
 warnings.filterwarnings("ignore", category=DomainWarning)
 
@@ -127,10 +127,9 @@ print(paper.format_table(avf_rows, ["step", "linf", "l2", "tv", "relative"]))
 fig, axes = plt.subplots(1, 2, figsize=(11, 4), sharey=True)
 for ax, curves, name in zip(axes, (rk4_curves, avf_curves), ("RK4", "AVF")):
     for tau, (tt, dH) in curves.items():
-        # |dH| is exactly 0 at t = 0 and can be so for AVF: floor it for the log axis.
-        ax.semilogy(tt, np.maximum(np.abs(dH), 1e-18), lw=0.8, label=rf"$\tau$ = {tau:g}")
-    ax.set(xlabel="$t$", title=rf"{name}: $|\tilde H(\tilde u(t)) - \tilde H(u_0)|$")
-axes[0].legend(fontsize="small")
+        plot_energy(tt, {rf"$\tau$ = {tau:g}": dH}, ax=ax)
+    ax.set(ylabel="", title=rf"{name}: $|\tilde H(\tilde u(t)) - \tilde H(u_0)|$")
+axes[1].get_legend().remove()
 fig.tight_layout()
 paper.save_figure(fig, "ex1_hamiltonian_deviation")
 

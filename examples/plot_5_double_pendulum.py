@@ -38,6 +38,7 @@ import numpy as np
 from sk_hamiltonian import DerivativeTransformer, DomainWarning, HamiltonianRegressor
 from sk_hamiltonian import _paper as paper
 from sk_hamiltonian.datasets import PAPER_DT, double_pendulum, make_trajectories
+from sk_hamiltonian.plotting import plot_energy
 
 # Trajectories started near the boundary of D leave it within their two steps;
 # the basis stays the paper's, on D.
@@ -80,14 +81,15 @@ for degree, n_trajectories in RUNS:
 # field (AVF) integrator to round-off.
 first = next(iter(models))
 fig, ax = plt.subplots(figsize=(6.5, 4))
-paper.plot_hamiltonians(ax, t, {
+plot_energy(t, {
     "$H(u(t))$, exact": system.hamiltonian(u),
     **{
         rf"$\tilde H(\tilde u(t)) + C$, {label}": model.hamiltonian(trajectories[label])
         + paper.hamiltonian_offset(model, system)
         for label, model in models.items()
     },
-})
+}, deviation=False, ax=ax)
+ax.set_title("Hamiltonian along the trajectories")
 fig.tight_layout()
 paper.save_figure(fig, "ex5_hamiltonian")
 # An AVF step of a degree-15 H~ costs about ten RK4 steps; conservation does

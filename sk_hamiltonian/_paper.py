@@ -19,6 +19,7 @@ from scipy.integrate import trapezoid
 
 from ._integrate import RK4, integrate
 from .datasets import PAPER_DT, make_trajectories
+from .plotting import plot_energy
 
 QUICK_ENV = "SK_HAMILTONIAN_QUICK"
 LONG_ENV = "SK_HAMILTONIAN_LONG"
@@ -388,14 +389,6 @@ def plot_errors(ax, t, errors, title="Relative error"):
     ax.legend(fontsize="small")
 
 
-def plot_hamiltonians(ax, t, curves, title="Hamiltonian along the trajectories"):
-    """Plot ``label -> H values over time``."""
-    for label, values in curves.items():
-        ax.plot(t, values, label=label)
-    ax.set(xlabel="$t$", title=title)
-    ax.legend(fontsize="small")
-
-
 def plot_errors_and_hamiltonian(system, t, trajectories, errors, sp, sp_label="SP"):
     """The paper's two-panel figure: relative errors, and Hamiltonians over time.
 
@@ -408,12 +401,13 @@ def plot_errors_and_hamiltonian(system, t, trajectories, errors, sp, sp_label="S
     fig, (ax_err, ax_ham) = plt.subplots(1, 2, figsize=(11, 4))
     plot_errors(ax_err, t, errors)
     u_sp = trajectories[sp_label]
-    plot_hamiltonians(ax_ham, t, {
+    plot_energy(t, {
         "$H(u(t))$, exact": system.hamiltonian(trajectories["exact"]),
         rf"$\tilde H(\tilde u(t)) + C$, {sp_label}": along(sp.hamiltonian, u_sp)
         + hamiltonian_offset(sp, system),
         rf"$H(\tilde u(t))$, {sp_label}": system.hamiltonian(u_sp),
-    })
+    }, deviation=False, ax=ax_ham)
+    ax_ham.set_title("Hamiltonian along the trajectories")
     fig.tight_layout()
     return fig
 
