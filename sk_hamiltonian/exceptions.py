@@ -7,7 +7,23 @@ class SimulationError(RuntimeError):
     The state became non-finite (the model or the reference system blew up), or
     an implicit step could not be solved. The message gives the time at which it
     happened and how to avoid it.
+
+    Attributes
+    ----------
+    t_reached : float
+        The last output time every trajectory reached.
+    t_failed : float
+        The first output time some trajectory could not reach.
+    failed_at : ndarray of shape (n_initial,)
+        For each initial state, the index into the output times of the first one
+        it could not reach, or ``n_times`` if it reached them all.
     """
+
+    def __init__(self, message, *, t_reached=float("nan"), t_failed=float("nan"), failed_at=None):
+        super().__init__(message)
+        self.t_reached = t_reached
+        self.t_failed = t_failed
+        self.failed_at = failed_at
 
 
 class DomainWarning(UserWarning):

@@ -159,8 +159,13 @@ def test_simulation_blow_up_raises_with_time():
     X = rng.uniform(-1, 1, size=(100, 2))
     y = np.column_stack([X[:, 1] ** 2, X[:, 0] ** 2])  # H = p^3/3 - q^3/3: escapes
     model = HamiltonianRegressor(degree=3, domain=[[-1, 1], [-1, 1]]).fit(X, y)
-    with pytest.raises(SimulationError, match="between t="):
-        model.simulate([0.9, -0.9], np.linspace(0, 50, 501))
+    t = np.linspace(0, 50, 501)
+    with pytest.raises(SimulationError, match="between t=") as info:
+        model.simulate([[0.9, -0.9], [0.0, 0.0]], t)
+    # The equilibrium at the origin survives; only the first state fails.
+    assert info.value.failed_at[1] == t.size and info.value.failed_at[0] < t.size
+    assert info.value.t_failed == t[info.value.failed_at[0]]
+    assert info.value.t_reached == t[info.value.failed_at[0] - 1]
 
 
 def test_vector_field_regressor_is_not_hamiltonian_but_fits_linear_field():

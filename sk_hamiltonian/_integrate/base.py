@@ -129,5 +129,8 @@ def raise_on_failure(failed_at, t, what="the learned system", hint=LEARNED_MODEL
         raise SimulationError(
             f"Simulating {what} failed for {n_failed} of {failed_at.shape[0]} initial "
             f"state(s): the state became non-finite, or an implicit step did not "
-            f"converge, between t={t[first - 1]:.6g} and t={t[first]:.6g}. {hint}"
+            f"converge, between t={t[first - 1]:.6g} and t={t[first]:.6g}. {hint}",
+            t_reached=float(t[first - 1]),
+            t_failed=float(t[first]),
+            failed_at=failed_at.copy(),
         )
