@@ -5,16 +5,12 @@ Build (quick mode, as in CI)::
     SK_HAMILTONIAN_QUICK=1 python -m sphinx -W --keep-going -b html docs docs/_build/html
 """
 
-import os
 from importlib.util import find_spec
 from pathlib import Path
 
 import sk_hamiltonian
 
 DOCS = Path(__file__).resolve().parent
-# sphinx-gallery runs every example with the same interpreter: without a
-# display, matplotlib must not look for one.
-os.environ.setdefault("MPLBACKEND", "Agg")
 
 project = "sk_hamiltonian"
 author = "sk_hamiltonian developers"
@@ -24,14 +20,14 @@ release = version = sk_hamiltonian.__version__
 extensions = [
     "sphinx.ext.autodoc",
     "sphinx.ext.autosummary",
-    "sphinx.ext.intersphinx",
     "sphinx.ext.mathjax",
     "numpydoc",
     "sphinx_gallery.gen_gallery",
 ]
 
-exclude_patterns = ["_build", "**.ipynb_checkpoints", "auto_examples/*.ipynb",
-                    "auto_examples/*.py", "auto_examples/*.zip", "sg_execution_times.rst"]
+# sphinx-gallery writes a summary of all galleries' run times at the top level;
+# the gallery's own one is linked from the gallery.
+exclude_patterns = ["_build", "sg_execution_times.rst"]
 templates_path = ["_templates"]
 default_role = "literal"
 
@@ -39,13 +35,6 @@ autosummary_generate = True
 autodoc_default_options = {"members": True, "inherited-members": True}
 numpydoc_show_class_members = False
 numpydoc_class_members_toctree = False
-# Cross-references inside "Parameters"/"Returns" types are not resolved:
-# types such as "array-like of shape (n_samples, n_states)" are prose.
-numpydoc_xref_param_type = False
-
-# No network during the build (intersphinx would fetch inventories): keep
-# references to external projects as plain text.
-intersphinx_mapping = {}
 
 sphinx_gallery_conf = {
     "examples_dirs": str(DOCS.parent / "examples"),
@@ -55,7 +44,6 @@ sphinx_gallery_conf = {
     "within_subsection_order": "FileNameSortKey",
     "download_all_examples": False,
     "remove_config_comments": True,
-    "matplotlib_animations": False,
     "abort_on_example_error": True,
     "plot_gallery": "True",
     "reference_url": {"sk_hamiltonian": None},
@@ -63,8 +51,6 @@ sphinx_gallery_conf = {
     # Mini-galleries of the examples using each object, included by the
     # autosummary templates.
     "backreferences_dir": str(DOCS / "generated"),
-    "show_memory": False,
-    "min_reported_time": 0,
 }
 
 html_title = f"sk_hamiltonian {release}"
