@@ -8,6 +8,17 @@ class SimulationError(RuntimeError):
     an implicit step could not be solved. The message gives the time at which it
     happened and how to avoid it.
 
+    Parameters
+    ----------
+    message : str
+        What failed, when, and how to avoid it.
+    t_reached : float, default=nan
+        The last output time every trajectory reached.
+    t_failed : float, default=nan
+        The first output time some trajectory could not reach.
+    failed_at : ndarray of shape (n_initial,), default=None
+        Per initial state, the index of the first output time not reached.
+
     Attributes
     ----------
     t_reached : float
