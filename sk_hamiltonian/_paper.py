@@ -370,7 +370,6 @@ def save_results(name, results):
     results = dict(results, quick_mode=quick_mode(), long_runs=long_runs())
     path = figures_dir() / f"{name}.json"
     path.write_text(json.dumps(results, indent=2, default=float, allow_nan=True))
-    return path
 
 
 def state_names(n_states):
