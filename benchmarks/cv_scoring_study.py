@@ -27,11 +27,12 @@ its pick divided by the best true error on the grid (1 is perfect), as the
 geometric mean over seeds, the worst seed, and the share of seeds within
 1.5x; ``+1SE`` rows apply the one-standard-error rule to the same scores.
 
-Run (about 20 minutes on one core)::
+Run (about 30 minutes on one core)::
 
     OMP_NUM_THREADS=1 OPENBLAS_NUM_THREADS=1 python benchmarks/cv_scoring_study.py
 
-``--quick`` runs one seed of the Morse setting on a coarse grid.
+``--quick`` runs the Morse setting only, on the coarse grid of the test
+(``Q = 2, 4, .., 12``, ``n = 3, 5, 7``), one seed unless ``--seeds`` is given.
 ``--henon-heiles DT NOISE`` instead tabulates, per seed, the cross-validated
 score, its standard error and the true error of every degree ``n = 1..8`` on
 the paper's Henon-Heiles set-up (finite differences, ``M = 500``, ``J = 2``),
@@ -207,10 +208,15 @@ def short(p):
 def main():
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     parser.add_argument("--settings", nargs="+", default=list(SETTINGS), choices=list(SETTINGS))
-    parser.add_argument("--seeds", type=int, default=3, help="seeds per setting (default 3)")
+    parser.add_argument(
+        "--seeds", type=int, default=None, help="seeds per setting (default 3; 1 with --quick)"
+    )
     parser.add_argument("--trajectories", type=int, default=500, help="M (default 500)")
     parser.add_argument("--steps", type=int, default=5, help="k of the k-step score (default 5)")
-    parser.add_argument("--quick", action="store_true", help="one seed, Morse, coarse grid")
+    parser.add_argument(
+        "--quick", action="store_true",
+        help="Morse only, on the coarse grid of tests/test_model_selection.py",
+    )
     parser.add_argument(
         "--henon-heiles", nargs=2, type=float, metavar=("DT", "NOISE"),
         help="instead, tabulate the one-standard-error rule on Henon-Heiles (n = 1..8)",
@@ -222,8 +228,10 @@ def main():
             henon_heiles_table(*args.henon_heiles, seed)
         return
     Qs, ns = list(range(1, 13)), list(range(3, 8))
+    if args.seeds is None:
+        args.seeds = 1 if args.quick else 3
     if args.quick:
-        args.settings, args.seeds = ["morse"], 1
+        args.settings = ["morse"]
         Qs, ns = [2, 4, 6, 8, 10, 12], [3, 5, 7]
     warnings.simplefilter("ignore")  # domain and conditioning warnings of poor candidates
     print(f"grid Q={Qs}, n={ns}; M={args.trajectories}, 5-fold CV, k={args.steps}")
