@@ -21,7 +21,7 @@ from .model_selection import count_terms, one_standard_error_rule
 
 EXAMPLE = dict(n_trajectories=500, n_intervals=40, noise=0.08, horizon=20.0)
 QUICK = dict(n_trajectories=60, n_intervals=40, noise=0.08, horizon=5.0)
-DEFAULT_DENOISE, DEFAULT_DEGREES = ["fd", "3", "5", "8"], [4, 5, 6, 7]
+DEFAULT_DENOISE, DEFAULT_DEGREES = ["fd", "3", "5", "8"], [4, 6, 8, 10]
 QUICK_DENOISE, QUICK_DEGREES = ["fd", "5"], [4, 6]
 Q_KEY, N_KEY = "derivativetransformer__degree", "hamiltonianregressor__degree"
 METHOD_KEY = "derivativetransformer__method"
