@@ -65,7 +65,7 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
         The solver used.
     n_features_in_ : int
         Number of state variables ``2d``.
-    feature_names_in_ : ndarray of shape (n_features_in_,)
+    feature_names_in_ : ndarray of shape (`n_features_in_`,)
         Names of the state variables, when ``X`` had string column names.
 
     See Also

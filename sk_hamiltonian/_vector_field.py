@@ -52,7 +52,7 @@ class VectorFieldRegressor(BaseTrajectoryRegressor):
         The solver used.
     n_features_in_ : int
         Number of state variables.
-    feature_names_in_ : ndarray of shape (n_features_in_,)
+    feature_names_in_ : ndarray of shape (`n_features_in_`,)
         Names of the state variables, when ``X`` had string column names.
 
     See Also
