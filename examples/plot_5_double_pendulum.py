@@ -19,8 +19,8 @@ The design has 12 equations per trajectory (3 states of 4 components), so the
 ``M = 20 000`` forms a 3 875 x 3 875 matrix from 240 000 equations.
 
 * ``n = 18`` with ``M = 60 000`` (7 314 coefficients, 720 000 equations)
-  takes about half an hour on two cores: it runs only if the environment
-  variable ``SK_HAMILTONIAN_LONG=1`` is set.
+  takes a quarter to half an hour on two cores: it runs only if the
+  environment variable ``SK_HAMILTONIAN_LONG=1`` is set.
 * Quick mode (``SK_HAMILTONIAN_QUICK=1``, used by the documentation build):
   ``M = 4 000`` for both ``n = 15`` and ``n = 16`` (still 10 equations per
   unknown), and the conservation check runs to ``T = 2``, so that the example
