@@ -249,7 +249,10 @@ def multistep_errors(model, Xt, n_steps, *, stride=1, substeps=ROLLOUT_SUBSTEPS)
         Y = np.swapaxes(Y, 0, 1)
         T = np.stack([targets[i] for i in members])
         who = owner[members]
-        np.add.at(squared_error, who, np.sum((Y - T) ** 2, axis=(1, 2)))
+        # A failed prediction holds its last finite, possibly huge, state; its
+        # error is set to inf below, so an overflow here changes nothing.
+        with np.errstate(over="ignore", invalid="ignore"):
+            np.add.at(squared_error, who, np.sum((Y - T) ** 2, axis=(1, 2)))
         np.add.at(squared_norm, who, np.sum(T**2, axis=(1, 2)))
         failed[who[failed_at < rel.shape[0]]] = True
     with np.errstate(invalid="ignore", divide="ignore"):
@@ -298,11 +301,11 @@ def multistep_scorer(n_steps=5, *, stride=1):
     >>> from sk_hamiltonian import DerivativeTransformer, HamiltonianRegressor
     >>> from sk_hamiltonian.datasets import make_trajectories
     >>> from sk_hamiltonian.model_selection import multistep_scorer
-    >>> X = make_trajectories("single_pendulum", 50, 20, dt=0.05, random_state=0)
+    >>> X = make_trajectories("henon_heiles", 60, 20, dt=0.05, random_state=0)
     >>> pipe = make_pipeline(DerivativeTransformer(dt=0.05, method="finite_difference"),
-    ...                      HamiltonianRegressor(degree=6))
+    ...                      HamiltonianRegressor(degree=3))
     >>> scores = cross_val_score(pipe, X, cv=3, scoring=multistep_scorer(5))
-    >>> bool(scores.min() > 0.9)
+    >>> bool(scores.min() > 0.999)
     True
     """
     for name, value in (("n_steps", n_steps), ("stride", stride)):
