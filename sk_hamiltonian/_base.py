@@ -10,13 +10,11 @@ from sklearn.utils._param_validation import Interval, StrOptions
 from sklearn.utils.validation import check_is_fitted, validate_data
 
 from ._integrate import integrate, raise_on_failure
+from ._scoring import multistep_errors
 from ._solvers import choose_solver, warn_if_ill_conditioned
 from ._trajectories import unpack_derivatives
 from .exceptions import DomainWarning
 
-# Rollouts in ``score`` subdivide each sampling interval so that integration
-# error stays well below model error.
-ROLLOUT_SUBSTEPS = 4
 # Rows of gradients assembled at once, to bound memory (entries of float64).
 BLOCK_ENTRIES = 10_000_000
 # Relative slack for "outside the domain", so that training points on the
@@ -267,7 +265,7 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
         if not is_trajectory_container(X):
             return super().score(X, y, sample_weight=sample_weight)
         check_is_fitted(self)
-        errors = rollout_errors(self, X)
+        errors = multistep_errors(self, X)
         return float(1.0 - np.average(np.minimum(errors, 1.0), weights=sample_weight))
 
     def _check_dimensions(self, X):
@@ -295,42 +293,3 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
         tags.target_tags.multi_output = True
         tags.target_tags.single_output = False
         return tags
-
-
-def rollout_errors(model, Xt, substeps=ROLLOUT_SUBSTEPS):
-    """Relative error of rollouts from each trajectory's first observation.
-
-    Parameters
-    ----------
-    model : fitted regressor
-        Provides ``_integrator("rk4")``.
-    Xt : derivative layout
-        Held-out trajectories with their observations and time stamps.
-    substeps : int, default=4
-        Integration steps per sampling interval.
-
-    Returns
-    -------
-    errors : ndarray of shape (n_trajectories,)
-        ``||X_hat_k - X_k||_F / ||X_k||_F`` per trajectory; ``inf`` where the
-        rollout failed before the last observation.
-    """
-    data = unpack_derivatives(Xt)
-    times, observed = list(data.times), list(data.observed)
-    errors = np.empty(len(observed))
-    groups = {}
-    for k, t in enumerate(times):
-        groups.setdefault((t.shape[0], t.tobytes()), []).append(k)
-    integrator = model._integrator("rk4")
-    for members in groups.values():
-        t = times[members[0]]
-        O = np.stack([observed[k] for k in members])
-        max_step = np.min(np.diff(t)) / substeps if t.shape[0] > 1 else None
-        Y, failed_at = integrate(integrator, O[:, 0], t, max_step)
-        Y = np.swapaxes(Y, 0, 1)
-        err = np.linalg.norm(Y - O, axis=(1, 2)) / np.maximum(
-            np.linalg.norm(O, axis=(1, 2)), np.finfo(float).tiny
-        )
-        err[failed_at < t.shape[0]] = np.inf
-        errors[members] = err
-    return errors

@@ -15,7 +15,6 @@ from sk_hamiltonian import (
     VectorFieldRegressor,
     unpack_derivatives,
 )
-from sk_hamiltonian._base import rollout_errors
 from sk_hamiltonian._integrate import integrate
 from sk_hamiltonian.datasets import (
     HamiltonianSystem,
@@ -354,7 +353,7 @@ def test_multistep_with_the_whole_window_is_the_default_rollout(clean_pendulum_f
     X, pipe = clean_pendulum_fit
     Xt = pipe[:-1].transform(X[40:])
     np.testing.assert_allclose(
-        multistep_errors(pipe[-1], Xt, n_steps=20), rollout_errors(pipe[-1], Xt), rtol=1e-12
+        multistep_errors(pipe[-1], Xt, n_steps=20), multistep_errors(pipe[-1], Xt), rtol=1e-12
     )
     assert multistep_scorer(20)(pipe, X[40:]) == pytest.approx(pipe.score(X[40:]), rel=1e-12)
 
