@@ -1,7 +1,6 @@
 """Structure-preserving regression: learn the Hamiltonian, not the vector field."""
 
 import numpy as np
-from sklearn.utils._param_validation import StrOptions
 from sklearn.utils.validation import check_is_fitted
 
 from ._base import BaseTrajectoryRegressor

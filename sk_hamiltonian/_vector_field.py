@@ -1,6 +1,5 @@
 """The non-structure-preserving baseline: fit each component of the vector field."""
 
-import numpy as np
 
 from ._base import BaseTrajectoryRegressor
 from ._basis import n_basis_functions, total_degree_powers, value_matrix
