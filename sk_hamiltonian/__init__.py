@@ -8,11 +8,17 @@ from ._derivatives import DerivativeTransformer
 from ._hamiltonian import HamiltonianRegressor
 from ._trajectories import unpack_derivatives
 from ._vector_field import VectorFieldRegressor
-from .exceptions import DomainWarning, IllConditionedWarning, SimulationError
+from .exceptions import (
+    ConservationWarning,
+    DomainWarning,
+    IllConditionedWarning,
+    SimulationError,
+)
 
 __version__ = "0.1.0"
 
 __all__ = [
+    "ConservationWarning",
     "DerivativeTransformer",
     "DomainWarning",
     "HamiltonianRegressor",

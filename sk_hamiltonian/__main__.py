@@ -15,8 +15,9 @@ from sklearn.pipeline import make_pipeline
 
 from . import DerivativeTransformer, HamiltonianRegressor, VectorFieldRegressor
 from ._integrate import integrate
-from ._report import UsageError, draw_report, format_hamiltonian, load_trajectories
+from ._report import UsageError, draw_report, load_trajectories
 from .datasets import PAPER_DT, make_trajectories, single_pendulum
+from .inspection import format_hamiltonian
 from .model_selection import count_terms, one_standard_error_rule
 
 EXAMPLE = dict(n_trajectories=500, n_intervals=40, noise=0.08, horizon=20.0)
@@ -161,7 +162,7 @@ def _run(args):
     best = search.best_estimator_
     model = best[-1]
     _print_choice(search, len(names))
-    print(f"learned: {format_hamiltonian(model, names)}")
+    print(f"learned: {format_hamiltonian(model, state_names=names)}")
     print(
         f"fit time: {fit_time:.1f} s for {len(search.cv_results_['params']) * args.cv} "
         f"cross-validation fits and the refit"

@@ -1,4 +1,4 @@
-"""What the two regressors share: input handling, domain, simulation and scoring."""
+"""What the two regressors share: input handling, model space, simulation and scoring."""
 
 import warnings
 from numbers import Integral, Real
@@ -7,19 +7,36 @@ import numpy as np
 from sklearn.base import BaseEstimator, RegressorMixin, _fit_context
 from sklearn.utils import check_array
 from sklearn.utils._param_validation import Interval, StrOptions
-from sklearn.utils.validation import check_is_fitted, validate_data
+from sklearn.utils.validation import _check_sample_weight, check_is_fitted, validate_data
 
-from ._integrate import integrate, raise_on_failure
+from ._design import TrainingData
+from ._integrate import integrate, make_integrator, raise_on_failure
 from ._scoring import multistep_errors
-from ._solvers import choose_solver, warn_if_ill_conditioned
+from ._solvers import (
+    choose_solver,
+    normal_equations,
+    solve_dense,
+    solve_nonnegative_tail,
+    solve_normal,
+    warn_if_ill_conditioned,
+)
+from ._space import ModelSpace, index_set
+from ._space.space import outside_domain
 from ._trajectories import unpack_derivatives
 from .exceptions import DomainWarning
 
-# Rows of gradients assembled at once, to bound memory (entries of float64).
+# Rows of evaluations done at once, to bound memory (entries of float64).
 BLOCK_ENTRIES = 10_000_000
 # Relative slack for "outside the domain", so that training points on the
 # bounding box do not warn after round-off.
 DOMAIN_SLACK = 1e-9
+# Default integration step as a fraction of the learned system's time scale
+# 1 / rho (rho: spectral radius of its Jacobian over the training states):
+# the global error of RK4 then stays near (0.1)**4 / 120 per unit of rho * t,
+# that of the second-order methods near (0.02)**2 / 12.
+STEP_FRACTION = {"rk4": 0.1, "yoshida4": 0.1, "avf": 0.02, "leapfrog": 0.02}
+# Training states at which the Jacobian is evaluated for the time scale.
+TIME_SCALE_SAMPLES = 256
 
 
 def is_trajectory_container(X):
@@ -44,98 +61,239 @@ def check_time(t):
 
 
 class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
-    """Polynomial models of ``dx/dt = f(x)`` on a box, fitted by least squares.
+    """Linear models of ``dx/dt = f(x)`` in a tensor-product space, fitted by least squares.
 
-    Subclasses define the model space through ``_fit_coef`` and
-    ``_vector_field``, and the integrators they support through ``_integrator``.
+    Subclasses define what is fitted through ``_fit_coef`` and
+    ``_vector_field``, and which integrators they support through
+    ``_dynamics``.
     """
 
     _parameter_constraints = {
         "degree": [Interval(Integral, 1, None, closed="left")],
         "domain": ["array-like", None],
+        "periodic": ["array-like", None],
+        "momentum_degree": [Interval(Integral, 0, None, closed="left"), None],
+        "separable": ["boolean"],
+        "max_interaction": [Interval(Integral, 1, None, closed="left"), None],
+        "fit_on": [StrOptions({"derivatives", "steps"})],
         "solver": [StrOptions({"auto", "lstsq", "normal"})],
     }
 
-    def __init__(self, degree=3, *, domain=None, solver="auto"):
+    #: Whether the basis holds the constant (set by subclasses).
+    _include_constant = False
+
+    def __init__(
+        self, degree=3, *, domain=None, periodic=None, momentum_degree=None,
+        separable=False, max_interaction=None, fit_on="derivatives", solver="auto",
+    ):
         self.degree = degree
         self.domain = domain
+        self.periodic = periodic
+        self.momentum_degree = momentum_degree
+        self.separable = separable
+        self.max_interaction = max_interaction
+        self.fit_on = fit_on
         self.solver = solver
 
+    # ------------------------------------------------------------------ fit
     @_fit_context(prefer_skip_nested_validation=True)
-    def fit(self, X, y=None):
-        """Fit the model to states and their time derivatives.
+    def fit(self, X, y=None, sample_weight=None):
+        """Fit the model to states and their time derivatives, or to trajectories.
 
         Parameters
         ----------
         X : array-like of shape (n_samples, n_states), or derivative layout
             Either states, with their time derivatives in ``y``, or the output
             of :class:`DerivativeTransformer` (a 3-D array or list of
-            trajectories), whose states and derivatives are used.
+            trajectories), whose states, derivatives and times are used.
         y : array-like of shape (n_samples, n_states) or None
             Time derivatives of the states in ``X``; None with the derivative
             layout.
+        sample_weight : array-like of shape (n_samples,), default=None
+            Weights of the states, or of the trajectories for the derivative
+            layout (so that a pipeline in cross-validation passes one weight
+            per trajectory). None weighs all equally.
 
         Returns
         -------
         self : object
             The fitted estimator.
         """
-        if is_trajectory_container(X):
-            if y is not None:
-                raise ValueError(
-                    "y must be None when X is trajectory data: the time derivatives "
-                    "are part of the DerivativeTransformer output."
-                )
-            data = unpack_derivatives(X)
-            X = np.concatenate(list(data.states))
-            y = np.concatenate(list(data.derivatives))
-        X, y = validate_data(self, X, y, multi_output=True, y_numeric=True)
-        self._check_dimensions(X)
-        n_rows, n_terms = self._design_shape(X.shape[0], X.shape[1])
-        if n_rows < n_terms:
-            raise ValueError(
-                f"X has n_samples={X.shape[0]}, which gives {n_rows} equations for "
-                f"{n_terms} unknowns at degree={self.degree}: the least-squares problem "
-                f"is underdetermined. Provide more samples (more or longer "
-                f"trajectories) or lower `degree`."
-            )
-        self._check_targets(X, y)
-        self.domain_ = self._fit_domain(X)
-        self.solver_ = choose_solver(self.solver, n_rows, n_terms)
-        self._fit_coef(X, y)
-        warn_if_ill_conditioned(self.cond_, self.rank_, n_terms, type(self).__name__)
-        self.n_terms_ = int(np.size(self.coef_))
+        data = self._training_data(X, y, sample_weight)
+        n_states = data.states.shape[1]
+        self._check_dimensions(n_states)
+        self.periodic_ = self._fit_periodic(n_states)
+        self.powers_ = self._index_set(n_states)
+        self._check_size(data)
+        self.domain_ = self._fit_domain(
+            data.states if data.sample_weight is None else data.states[data.sample_weight > 0]
+        )
+        self._space = ModelSpace(self.domain_, self.powers_, self.periodic_)
+        self.solver_ = choose_solver(
+            self.solver, data.n_rows(self.fit_on) * self._rows_per_sample(n_states),
+            self.powers_.shape[0],
+        )
+        self._fit_coef(data)
+        warn_if_ill_conditioned(self.cond_, self.rank_, self._n_columns(), type(self).__name__)
+        self.n_terms_ = self._n_fitted()
+        self.dt_ = self._training_step(data)
+        self.state_scale_ = self._state_scale(data.states)
+        # Typical size of each variable, for ranking terms (inspection).
+        self._state_magnitude = np.sqrt(np.mean(data.states**2, axis=0))
+        self.time_scale_ = self._time_scale(data.states)
+        self._after_fit(data)
         return self
 
+    def _training_data(self, X, y, sample_weight):
+        """Validate the input and gather what the fit needs."""
+        if not is_trajectory_container(X):
+            X, y = validate_data(self, X, y, multi_output=True, y_numeric=True)
+            weight = None if sample_weight is None else _check_sample_weight(sample_weight, X)
+            return TrainingData(X, y, weight)
+        if y is not None:
+            raise ValueError(
+                "y must be None when X is trajectory data: the time derivatives "
+                "are part of the DerivativeTransformer output."
+            )
+        layout = unpack_derivatives(X)
+        states, derivatives, times = list(layout.states), list(layout.derivatives), list(layout.times)
+        lengths = [S.shape[0] for S in states]
+        X2, y2 = validate_data(
+            self, np.concatenate(states), np.concatenate(derivatives), multi_output=True,
+            y_numeric=True,
+        )
+        trajectory_weight = weight = None
+        if sample_weight is not None:
+            trajectory_weight = np.asarray(sample_weight, dtype=float)
+            if trajectory_weight.shape != (len(states),):
+                raise ValueError(
+                    f"sample_weight must have one weight per trajectory, shape "
+                    f"({len(states)},), when X is the derivative layout; got shape "
+                    f"{trajectory_weight.shape}."
+                )
+            trajectory_weight = _check_sample_weight(trajectory_weight, states)
+            weight = np.repeat(trajectory_weight, lengths)
+        pieces = np.split(X2, np.cumsum(lengths)[:-1])
+        return TrainingData(
+            X2, y2, weight, trajectories=list(zip(times, pieces)),
+            trajectory_weight=trajectory_weight,
+        )
+
+    def _fit_periodic(self, n_states):
+        if self.periodic is None:
+            return np.zeros(n_states, dtype=bool)
+        periodic = np.asarray(self.periodic)
+        if (
+            periodic.shape != (n_states,)
+            or not (periodic.dtype == bool or np.isin(periodic, (0, 1)).all())
+        ):
+            raise ValueError(
+                f"periodic must be None or an array of {n_states} booleans, True for "
+                f"each state variable that is an angle; got {self.periodic!r}."
+            )
+        return periodic.astype(bool)
+
     def _fit_domain(self, X):
+        n_states = X.shape[1]
         if self.domain is None:
+            if X.shape[0] < 2:
+                raise ValueError(
+                    f"Found n_samples={X.shape[0]} (with positive weight): at least 2 are "
+                    f"needed, since the domain is their bounding box."
+                )
+            # An angle's default period is [-pi, pi); other variables take the
+            # bounding box of the training states (those with positive weight).
             domain = np.column_stack([X.min(axis=0), X.max(axis=0)])
-            flat = np.flatnonzero(domain[:, 1] <= domain[:, 0])
+            domain[self.periodic_] = [-np.pi, np.pi]
+            width = domain[:, 1] - domain[:, 0]
+            scale = np.maximum(np.abs(domain).max(axis=1), np.finfo(float).tiny)
+            flat = np.flatnonzero(width <= 1e-9 * scale)
             if flat.size:
                 raise ValueError(
                     f"State variable(s) {flat.tolist()} are constant in the training "
-                    f"data, so the bounding box is empty; pass an explicit `domain` "
-                    f"of shape ({X.shape[1]}, 2)."
+                    f"data (up to round-off), so the bounding box is empty; pass an "
+                    f"explicit `domain` of shape ({n_states}, 2), or drop the "
+                    f"variable(s)."
                 )
             return domain
-        domain = check_array(self.domain, input_name="domain")
-        if domain.shape != (X.shape[1], 2) or np.any(domain[:, 1] <= domain[:, 0]):
+        domain = check_array(self.domain, input_name="domain", ensure_2d=False)
+        if domain.shape != (n_states, 2) or np.any(domain[:, 1] <= domain[:, 0]):
             raise ValueError(
-                f"domain must have shape ({X.shape[1]}, 2) with one (low, high) row "
-                f"per state variable and low < high; got {domain.tolist()}."
+                f"domain must have shape ({n_states}, 2) with one (low, high) row "
+                f"per state variable and low < high; got {np.asarray(self.domain).tolist()}."
             )
         # Frames: _warn_outside, _fit_domain, fit, its _fit_context wrapper.
         self._warn_outside(X, domain, "the training states", stacklevel=5)
         return domain
 
+    def _index_set(self, n_states):
+        if (self.momentum_degree is not None or self.separable) and n_states % 2:
+            raise ValueError(
+                f"momentum_degree and separable need states (p_1..p_d, q_1..q_d) with an "
+                f"even number of variables; X has {n_states}."
+            )
+        return index_set(
+            n_states, self.degree, periodic=self._fit_periodic(n_states),
+            momentum_degree=self.momentum_degree, separable=self.separable,
+            max_interaction=self.max_interaction, include_constant=self._include_constant,
+        )
+
+    def _n_terms(self, n_states):
+        """Number of basis functions for data with ``n_states`` variables."""
+        return self._index_set(n_states).shape[0]
+
+    def _solve_blocks(self, make_blocks, n_columns, n_nonnegative=0):
+        """Solve the least-squares problem given by row blocks; the last unknowns >= 0."""
+        if self.solver_ == "lstsq":
+            parts = list(make_blocks())
+            A = np.concatenate([a for a, _ in parts])
+            b = np.concatenate([b for _, b in parts])
+            del parts
+            if not n_nonnegative:
+                return solve_dense(A, b)
+
+            def solve(keep):
+                return solve_dense(A[:, keep], b)
+        else:
+            gram, rhs = normal_equations(make_blocks(), n_columns)
+            if not n_nonnegative:
+                return solve_normal(gram, rhs)
+
+            def solve(keep):
+                return solve_normal(gram[np.ix_(keep, keep)], rhs[keep])
+        return solve_nonnegative_tail(solve, n_columns, n_nonnegative)
+
+    def _training_step(self, data):
+        """Median sampling step of the training trajectories (NaN without them)."""
+        if data.trajectories is None:
+            return float("nan")
+        steps = np.concatenate([np.diff(t) for t, _ in data.trajectories])
+        return float(np.median(steps)) if steps.size else float("nan")
+
+    def _state_scale(self, states):
+        scale = np.std(states, axis=0)
+        # A constant variable (possible with an explicit domain) keeps unit scale.
+        return np.where(scale > 0, scale, 1.0)
+
+    def _time_scale(self, states):
+        """``1 / rho``, rho the 90th percentile of the Jacobian's spectral radius."""
+        jacobian = self._jacobian(states[:: max(1, states.shape[0] // TIME_SCALE_SAMPLES)])
+        if jacobian is None:
+            return float("nan")
+        with np.errstate(all="ignore"):
+            radius = np.abs(np.linalg.eigvals(jacobian)).max(axis=1)
+        radius = radius[np.isfinite(radius)]
+        rho = float(np.percentile(radius, 90)) if radius.size else 0.0
+        return 1.0 / rho if rho > 0 else float("inf")
+
+    # ------------------------------------------------------------ evaluation
     def _warn_outside(self, X, domain=None, what="X", stacklevel=3):
         domain = self.domain_ if domain is None else domain
-        slack = DOMAIN_SLACK * (domain[:, 1] - domain[:, 0])
-        outside = np.any((X < domain[:, 0] - slack) | (X > domain[:, 1] + slack), axis=1)
+        outside = outside_domain(X, domain, self.periodic_, slack=DOMAIN_SLACK)
         if outside.any():
             warnings.warn(
                 f"{outside.mean():.1%} of {what} lie outside the domain "
-                f"{domain.tolist()}, where the polynomial model is not trusted.",
+                f"{domain.tolist()}, where the model is not trusted.",
                 DomainWarning,
                 stacklevel=stacklevel,
             )
@@ -145,11 +303,11 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
         if hasattr(X, "columns") or np.ndim(X) == 2:
             X = validate_data(self, X, reset=False)
             return X, X.shape[:-1]
-        X = np.asarray(X, dtype=float)
-        if X.ndim < 1 or X.shape[-1] != self.n_features_in_:
+        X = np.asarray(X)
+        if X.ndim < 2 or X.shape[-1] != self.n_features_in_:
             raise ValueError(
-                f"X must have {self.n_features_in_} state variables on its last axis, "
-                f"as in fit; got shape {X.shape}."
+                f"X must have shape (..., {self.n_features_in_}): states on the last axis, "
+                f"as in fit; got shape {X.shape}. For a single state x, pass x[None]."
             )
         flat = check_array(X.reshape(-1, X.shape[-1]), ensure_min_samples=1)
         return flat, X.shape[:-1]
@@ -186,7 +344,19 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
         self._warn_outside(X)
         return self._vector_field(X)
 
-    def simulate(self, x0, t, *, method="rk4", max_step=None):
+    # ------------------------------------------------------------ simulation
+    def _integrator(self, method=None):
+        return make_integrator(self._default_method() if method is None else method,
+                               self._dynamics())
+
+    def _default_method(self):
+        return "rk4"
+
+    def _default_step(self, method):
+        """The step ``simulate`` takes when ``max_step`` is None."""
+        return STEP_FRACTION[method] * self.time_scale_
+
+    def simulate(self, x0, t, *, method=None, max_step=None):
         """Integrate the learned system from one or several initial states.
 
         Parameters
@@ -195,20 +365,30 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
             Initial state(s), taken at time ``t[0]``.
         t : array-like of shape (n_times,)
             Strictly increasing output times.
-        method : {"rk4", "avf"}, default="rk4"
+        method : {"rk4", "avf", "leapfrog", "yoshida4"}, default=None
             ``"rk4"``: classical Runge-Kutta (the paper's solver).
             ``"avf"``: averaged vector field, which conserves the learned
-            Hamiltonian to round-off at any step size
-            (:class:`HamiltonianRegressor` only).
+            Hamiltonian to round-off at any step size (and dissipates it
+            exactly as the model does, with damping);
+            :class:`HamiltonianRegressor` only. ``"leapfrog"`` (order 2) and
+            ``"yoshida4"`` (order 4): explicit symplectic methods for
+            separable models (``separable=True``). None: ``"avf"`` for a model
+            fitted with ``fit_on="steps"``, else ``"rk4"``.
         max_step : float, default=None
             Largest integration step; each interval of ``t`` is split into the
-            fewest equal steps no longer than this. None steps from one output
-            time to the next.
+            fewest equal steps no longer than this. None chooses it from the
+            fitted model: the training step ``dt_`` for the AVF method of a
+            model fitted on steps, else a fraction of the learned system's
+            time scale ``time_scale_`` (0.1 for the fourth-order methods, 0.02
+            for the second-order ones), which keeps the integration error far
+            below the model's error. ``numpy.inf`` steps from one output time
+            to the next.
 
         Returns
         -------
         X : ndarray of shape (n_times, n_states) or (n_initial, n_times, n_states)
-            The trajectories, sampled at ``t``.
+            The trajectories, sampled at ``t``; periodic variables are wrapped
+            into their period.
 
         Raises
         ------
@@ -227,26 +407,36 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
         if not np.isfinite(x0).all():
             raise ValueError("x0 contains NaN or infinity.")
         t = check_time(t)
-        if max_step is not None and not (isinstance(max_step, Real) and max_step > 0):
-            raise ValueError(f"max_step must be a positive number or None; got {max_step!r}.")
-        Y, failed_at = integrate(self._integrator(method), x0, t, max_step)
+        if max_step is not None and not (
+            isinstance(max_step, Real) and not isinstance(max_step, bool) and max_step > 0
+        ):
+            raise ValueError(
+                f"max_step must be a positive number, numpy.inf, or None; got {max_step!r}."
+            )
+        integrator = self._integrator(method)
+        if max_step is None:
+            max_step = self._default_step(integrator.name)
+        Y, failed_at = integrate(integrator, x0, t, max_step)
         raise_on_failure(failed_at, t, what=f"the learned system ({type(self).__name__})")
         Y = np.swapaxes(Y, 0, 1)
         self._warn_outside(Y.reshape(-1, Y.shape[-1]), what="the simulated states", stacklevel=3)
         return Y[0] if single else Y
 
+    # --------------------------------------------------------------- scoring
     def score(self, X, y=None, sample_weight=None):
         """Accuracy of rollouts against observed trajectories (or R² of derivatives).
 
         With the derivative layout (what a pipeline passes on), each trajectory
         is integrated from its first *observed* state over its time stamps and
-        compared with its observations; the score is
-        ``1 - mean_k min(1, ||X_hat_k - X_k|| / ||X_k||)`` (Frobenius norms per
-        trajectory), so 1 is perfect and a rollout that fails or strays by more
-        than the size of the data scores 0. Neither the derivatives nor the
-        smoothed states enter, so tuning the derivative estimator cannot game it.
-        With 2-D states ``X`` and derivatives ``y``, the usual
-        :func:`~sklearn.metrics.r2_score` of the predicted derivatives.
+        compared with its observations; its error ``e_k`` is the
+        root-mean-square difference, each state variable divided by its
+        standard deviation over the training states (``state_scale_``), and the
+        score is ``1 - mean_k min(1, e_k)``: 1 is perfect, and a rollout that
+        fails or strays by more than the spread of the data scores 0. The
+        score does not change when the data are translated, and neither the
+        derivatives nor the smoothed states enter, so tuning the derivative
+        estimator cannot game it. With 2-D states ``X`` and derivatives ``y``,
+        the usual :func:`~sklearn.metrics.r2_score` of the predicted derivatives.
 
         Parameters
         ----------
@@ -263,28 +453,50 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
             Greater is better; at most 1.
         """
         if not is_trajectory_container(X):
+            if y is None:
+                raise ValueError(
+                    "score needs y, the time derivatives of X, for 2-D states X; or pass "
+                    "trajectories in the derivative layout (the DerivativeTransformer "
+                    "output), whose rollouts are scored."
+                )
             return super().score(X, y, sample_weight=sample_weight)
         check_is_fitted(self)
         errors = multistep_errors(self, X)
         return float(1.0 - np.average(np.minimum(errors, 1.0), weights=sample_weight))
 
-    def _check_dimensions(self, X):
+    # ------------------------------------------------------------------ hooks
+    def _check_dimensions(self, n_states):
         """Hook: reject state dimensions the model cannot handle."""
 
-    def _check_targets(self, X, y):
-        """Hook: reject targets that are not time derivatives of X."""
+    def _check_size(self, data):
+        """Hook: reject problems the model cannot fit."""
 
-    def _design_shape(self, n_samples, n_states):
+    def _rows_per_sample(self, n_states):
         raise NotImplementedError
 
-    def _fit_coef(self, X, y):
+    def _n_columns(self):
+        """Number of columns of the least-squares design."""
+        return self._space.n_terms
+
+    def _n_fitted(self):
+        """Number of fitted unknowns."""
+        return int(np.size(self.coef_))
+
+    def _fit_coef(self, data):
         raise NotImplementedError
 
     def _vector_field(self, X):
         raise NotImplementedError
 
-    def _integrator(self, method):
+    def _jacobian(self, X):
+        """Jacobians of the learned field at ``X`` (None where there is none)."""
+        return None
+
+    def _dynamics(self):
         raise NotImplementedError
+
+    def _after_fit(self, data):
+        """Hook: checks of the fitted model against its training data."""
 
     def __sklearn_tags__(self):
         tags = super().__sklearn_tags__()

@@ -1,45 +1,79 @@
 """Structure-preserving regression: learn the Hamiltonian, not the vector field."""
 
+import warnings
+
 import numpy as np
 from sklearn.utils.validation import check_is_fitted
 
 from ._base import BaseTrajectoryRegressor
-from ._basis import (
-    gradient_dot,
-    gradient_matrix,
-    hessian_dot,
-    n_basis_functions,
-    total_degree_powers,
-    value_matrix,
-)
-from ._integrate import METHODS, apply_inverse_symplectic
-from ._solvers import solve_dense, solve_streaming
+from ._conservation import energy_trend
+from ._design import hamiltonian_blocks, quadrature_nodes
+from ._integrate import Dynamics, apply_structure
+from ._space import ModelSpace
 from ._trajectories import check_n_states
+from .exceptions import ConservationWarning
 
-
-def _symplectic_targets(y):
-    """``J dx/dt`` for ``J = [[0, I], [-I, 0]]``: the gradient the data ask for."""
-    d = y.shape[1] // 2
-    return np.concatenate([y[:, d:], -y[:, :d]], axis=1)
+# A trend of H~ along the data is reported when it is significant (|z| above
+# this) ...
+TREND_Z = 5.0
+# ... and large: the energy's spread changes by more than this fraction over
+# the longer of one training trajectory and one period of the learned system.
+TREND_SIZE = 0.01
 
 
 class HamiltonianRegressor(BaseTrajectoryRegressor):
     """Structure-preserving regression of an unknown Hamiltonian system.
 
-    Fits a polynomial Hamiltonian ``H~`` of total degree ``degree`` so that
-    ``J dx/dt ≈ grad H~(x)`` in the least-squares sense (Wu, Qin & Xiu, Section
-    3), with ``x = (p_1..p_d, q_1..q_d)`` and ``J = [[0, I], [-I, 0]]``. The
-    learned system ``dx/dt = J^{-1} grad H~(x)`` is Hamiltonian by construction,
-    so it conserves ``H~`` exactly along its trajectories.
+    Fits a Hamiltonian ``H~`` in a space of tensor-product functions so that
+    ``J dx/dt ≈ grad H~(x)`` in the least-squares sense (Wu, Qin & Xiu,
+    Section 3), with ``x = (p_1..p_d, q_1..q_d)`` and ``J = [[0, I], [-I, 0]]``.
+    The learned system ``dx/dt = J^{-1} grad H~(x)`` is Hamiltonian by
+    construction, so it conserves ``H~`` exactly along its trajectories. The
+    default space is the paper's: Legendre polynomials of total degree
+    ``degree`` on a box; the other parameters fit the space to the scene.
 
     Parameters
     ----------
     degree : int, default=3
-        Total degree ``n`` of the polynomial Hamiltonian. The number of unknowns
-        is ``C(n + 2d, 2d) - 1``.
+        Largest total degree ``n`` of a basis function (a frequency counts
+        like a degree). With the defaults the number of unknowns is
+        ``C(n + 2d, 2d) - 1``.
     domain : array-like of shape (n_states, 2), default=None
-        The box ``D`` carrying the Legendre basis, one ``(low, high)`` row per
-        state variable. None uses the bounding box of the training states.
+        The box carrying the basis, one ``(low, high)`` row per state
+        variable; for a periodic variable, one full period ``[low, high)``.
+        None uses the bounding box of the training states, and ``[-pi, pi)``
+        for periodic variables.
+    periodic : array-like of shape (n_states,) of bool, default=None
+        True marks an angle: its basis is trigonometric (``1, cos k theta,
+        sin k theta`` with ``theta = 2 pi (x - low) / (high - low)``), and states
+        outside its period are wrapped, not extrapolated, everywhere. None:
+        no periodic variable.
+    momentum_degree : int, default=None
+        Largest total degree in the momenta ``p``. 2 spans every mechanical
+        Hamiltonian ``p^T M(q) p / 2 + b(q)^T p + V(q)`` with far fewer terms.
+        None: only ``degree`` limits it.
+    separable : bool, default=False
+        ``H~ = T(p) + V(q)``: no basis function mixes momenta and positions.
+        Separable models can be simulated with the explicit symplectic
+        methods ``"leapfrog"`` and ``"yoshida4"``.
+    max_interaction : int, default=None
+        Most state variables one basis function depends on (2: pairwise
+        couplings, as in lattices). None: no limit.
+    fit_on : {"derivatives", "steps"}, default="derivatives"
+        What the model is fitted to. ``"derivatives"``: the paper's fit, the
+        gradient against the estimated time derivatives. ``"steps"``: the
+        observed steps ``x0 -> x1`` of the trajectories, so that the
+        averaged-vector-field map of ``H~`` at each pair's own time step
+        reproduces them; no derivative estimate enters (the layout's states
+        are used: the raw observations with finite differences, the smoothed
+        ones with the polynomial method). Such an ``H~`` is the *modified*
+        Hamiltonian of the AVF method at the data step, within ``O(dt**2)`` of
+        the true one; :meth:`simulate` then uses AVF at the training step by
+        default. Needs the derivative layout as input.
+    damping : bool, default=False
+        Add linear friction, ``dp/dt = -dH~/dq - gamma * dq/dt``, with one
+        ``gamma >= 0`` per degree of freedom fitted jointly with ``H~`` by the
+        same least squares (the friction term uses the observed ``dq/dt``).
     solver : {"auto", "lstsq", "normal"}, default="auto"
         ``"lstsq"`` factorizes the whole (column-equilibrated) design with an
         SVD; ``"normal"`` streams it in blocks into the normal equations, with
@@ -48,20 +82,44 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
 
     Attributes
     ----------
-    coef_ : ndarray of shape (n_terms,)
+    coef_ : ndarray of shape (n_basis,)
         Coefficients of ``H~`` in the basis ``powers_``.
-    powers_ : ndarray of shape (n_terms, n_states)
-        Multi-indices of the tensor Legendre basis functions (constant excluded).
+    powers_ : ndarray of shape (n_basis, n_states)
+        Multi-indices of the basis functions (constant excluded): the
+        Legendre degree of each ordinary variable, the signed frequency of
+        each periodic one (``+k``: ``cos k theta``, ``-k``: ``sin k theta``).
+        :func:`~sk_hamiltonian.inspection.hamiltonian_terms` lists them
+        readably.
+    periodic_ : ndarray of shape (n_states,) of bool
+        Which variables are periodic.
     domain_ : ndarray of shape (n_states, 2)
         The box the basis lives on.
+    damping_ : ndarray of shape (n_dof,)
+        Fitted friction coefficients ``gamma`` (zeros with ``damping=False``).
     cond_ : float
         Condition number of the column-equilibrated least-squares design.
     rank_ : int
         Numerical rank of that design.
     n_terms_ : int
-        Number of fitted coefficients.
+        Number of fitted unknowns: ``n_basis``, plus ``n_dof`` with damping.
     solver_ : str
         The solver used.
+    dt_ : float
+        Median time step of the training trajectories (NaN when fitted on
+        2-D states); the AVF step of a model fitted on steps.
+    time_scale_ : float
+        ``1 / rho``, with ``rho`` the 90th percentile of the spectral radius of
+        the learned system's Jacobian over the training states; sets the
+        default integration step.
+    state_scale_ : ndarray of shape (n_states,)
+        Standard deviation of each state variable over the training states;
+        the rollout score measures errors in these units.
+    energy_trend_ : float
+        Trend of ``H~`` along the training trajectories: its slope in time
+        over the spread of ``H~`` on the data (NaN when fitted on 2-D states).
+        Near zero for conservative data, negative when they lose energy.
+    energy_trend_z_ : float
+        The trend's z-score (slope over its standard error).
     n_features_in_ : int
         Number of state variables ``2d``.
     feature_names_in_ : ndarray of shape (`n_features_in_`,)
@@ -74,11 +132,15 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
 
     Notes
     -----
-    The basis is the tensor product of Legendre polynomials on ``domain_``
-    mapped to ``[-1, 1]^{2d}``, of total degree ``1..degree``. Every
-    non-constant basis function has zero mean over the box under the uniform
-    measure, so the free additive constant of ``H~`` is fixed by the rule
-    *H~ has zero mean over the domain*, the constant of the paper's Theorem 3.5.
+    Every non-constant basis function has zero mean over the box under the
+    uniform measure, so the free additive constant of ``H~`` is fixed by the
+    rule *H~ has zero mean over the domain*, the constant of the paper's
+    Theorem 3.5.
+
+    After fitting on trajectories, ``H~`` is evaluated along each of them. A
+    :class:`~sk_hamiltonian.ConservationWarning` says when it trends (the data
+    look dissipative or driven: consider ``damping=True``), or when a fitted
+    damping is not backed by a loss of energy in the data.
 
     Examples
     --------
@@ -92,65 +154,178 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
     array([0.5])
     """
 
-    _parameter_constraints = {**BaseTrajectoryRegressor._parameter_constraints}
+    _parameter_constraints = {
+        **BaseTrajectoryRegressor._parameter_constraints,
+        "damping": ["boolean"],
+    }
 
-    def _check_dimensions(self, X):
-        check_n_states(X.shape[1])
+    def __init__(
+        self, degree=3, *, domain=None, periodic=None, momentum_degree=None,
+        separable=False, max_interaction=None, fit_on="derivatives", damping=False,
+        solver="auto",
+    ):
+        super().__init__(
+            degree, domain=domain, periodic=periodic, momentum_degree=momentum_degree,
+            separable=separable, max_interaction=max_interaction, fit_on=fit_on,
+            solver=solver,
+        )
+        self.damping = damping
 
-    def _check_targets(self, X, y):
-        if y.ndim != 2 or y.shape != X.shape:
+    # ------------------------------------------------------------------ fit
+    def _check_dimensions(self, n_states):
+        check_n_states(n_states)
+
+    def _rows_per_sample(self, n_states):
+        return n_states
+
+    def _n_terms(self, n_states):
+        return super()._n_terms(n_states) + (n_states // 2 if self.damping else 0)
+
+    def _check_size(self, data):
+        n_states = data.states.shape[1]
+        if data.derivatives.shape != data.states.shape:
             raise ValueError(
                 f"y must hold the time derivative of every state variable, with the "
-                f"same shape as X {X.shape}; got shape {y.shape}."
+                f"same shape as X {data.states.shape}; got shape {data.derivatives.shape}."
+            )
+        n_rows = data.n_rows(self.fit_on) * n_states
+        n_unknowns = self._n_terms(n_states)
+        if n_rows < n_unknowns:
+            what = "observed steps" if self.fit_on == "steps" else "samples"
+            raise ValueError(
+                f"The data give {data.n_rows(self.fit_on)} {what}, that is {n_rows} "
+                f"equations for {n_unknowns} unknowns at degree={self.degree}: the "
+                f"least-squares problem is underdetermined. Provide more samples (more "
+                f"or longer trajectories), lower `degree`, or restrict the space "
+                f"(momentum_degree, separable, max_interaction)."
             )
 
-    def _design_shape(self, n_samples, n_states):
-        return n_samples * n_states, n_basis_functions(n_states, self.degree)
+    def _fit_coef(self, data):
+        space = self._space
+        d = space.n_states // 2
+        n_extra = d if self.damping else 0
+        coef, self.cond_, self.rank_ = self._solve_blocks(
+            lambda: hamiltonian_blocks(
+                space, data, self.fit_on, quadrature_nodes(space), damping=self.damping
+            ),
+            space.n_terms + n_extra,
+            n_nonnegative=n_extra,
+        )
+        self.coef_ = coef[: space.n_terms]
+        self.damping_ = coef[space.n_terms :] if self.damping else np.zeros(d)
+        self._split = self._separable_parts() if self.separable else None
 
-    def _fit_coef(self, X, y):
-        self.powers_ = total_degree_powers(X.shape[1], self.degree)
-        targets = _symplectic_targets(y)
-        n_terms = self.powers_.shape[0]
-        if self.solver_ == "lstsq":
-            A = gradient_matrix(X, self.domain_, self.powers_).reshape(-1, n_terms)
-            self.coef_, self.cond_, self.rank_ = solve_dense(A, targets.ravel())
+    def _n_fitted(self):
+        return self._n_columns()
+
+    def _n_columns(self):
+        return self._space.n_terms + (self.damping_.size if self.damping else 0)
+
+    def _separable_parts(self):
+        """Spaces and coefficients of ``T(p)`` and ``V(q)`` of a separable model."""
+        d = self.n_features_in_ // 2
+        on_p = np.any(self.powers_[:, :d] != 0, axis=1)
+        parts = []
+        for terms, variables in ((on_p, slice(0, d)), (~on_p, slice(d, 2 * d))):
+            part = ModelSpace(
+                self.domain_[variables], self.powers_[terms][:, variables],
+                self.periodic_[variables],
+            )
+            parts.append((part, self.coef_[terms]))
+        return parts
+
+    def _after_fit(self, data):
+        self.energy_trend_, self.energy_trend_z_ = float("nan"), float("nan")
+        if data.trajectories is None:
             return
-        rows = max(1, 20_000_000 // (n_terms * X.shape[1]))
-        blocks = (
-            (
-                gradient_matrix(X[i : i + rows], self.domain_, self.powers_).reshape(-1, n_terms),
-                targets[i : i + rows].ravel(),
+        self.energy_trend_, self.energy_trend_z_ = energy_trend(
+            [(t, self._hamiltonian(S)) for t, S in data.trajectories]
+        )
+        if not np.isfinite(self.energy_trend_z_):
+            return
+        durations = [t[-1] - t[0] for t, _ in data.trajectories]
+        horizon = max(float(np.mean(durations)), 2 * np.pi * self.time_scale_)
+        change = abs(self.energy_trend_) * horizon
+        if not self.damping_.any() and abs(self.energy_trend_z_) > TREND_Z and change > TREND_SIZE:
+            direction = "loses" if self.energy_trend_ < 0 else "gains"
+            warnings.warn(
+                f"HamiltonianRegressor: the learned energy H~ {direction} "
+                f"{change:.1%} of its spread over {horizon:.3g} time units along the "
+                f"training trajectories (trend z-score {self.energy_trend_z_:.1f}), but "
+                f"the model conserves it. Either the data are "
+                f"{'dissipative' if self.energy_trend_ < 0 else 'driven'} (consider "
+                f"damping=True), or the model does not fit them well where the "
+                f"trajectories go (consider a larger degree or a larger space).",
+                ConservationWarning,
+                stacklevel=4,
             )
-            for i in range(0, X.shape[0], rows)
-        )
-        self.coef_, self.cond_, self.rank_ = solve_streaming(blocks, n_terms)
+        elif self.damping_.any() and self.energy_trend_z_ > -2:
+            warnings.warn(
+                f"HamiltonianRegressor: the fitted damping {np.round(self.damping_, 4).tolist()} "
+                f"is not backed by a loss of energy along the training trajectories (trend "
+                f"z-score {self.energy_trend_z_:.1f}). A bias of the derivative estimate "
+                f"(e.g. one-sided differences lag by half a step) can look like friction; "
+                f"check the derivatives, or fit with damping=False.",
+                ConservationWarning,
+                stacklevel=4,
+            )
 
+    # ------------------------------------------------------------ evaluation
     def _gradient(self, X):
-        width = self.powers_.shape[0] * X.shape[1]
         return self._in_blocks(
-            X, lambda B: gradient_dot(B, self.domain_, self.powers_, self.coef_), width
+            X, lambda B: self._space.gradient_dot(B, self.coef_),
+            self._space.n_terms * self._space.layout.n_slots,
         )
 
-    def _vector_field(self, X):
-        return apply_inverse_symplectic(self._gradient(X))
+    def _hamiltonian(self, X):
+        return self._in_blocks(
+            X, lambda B: self._space.value_dot(B, self.coef_),
+            self._space.n_terms * self._space.layout.n_slots,
+        )
 
     def _hessian(self, X):
-        return hessian_dot(X, self.domain_, self.powers_, self.coef_)
+        return self._space.hessian_dot(X, self.coef_)
 
-    def _integrator(self, method):
-        if method not in METHODS:
-            raise ValueError(f"method must be one of {sorted(METHODS)}; got {method!r}.")
-        if method == "avf":
-            return METHODS["avf"](self._gradient, self._hessian, self.degree)
-        return METHODS[method](self._vector_field)
+    def _vector_field(self, X):
+        return apply_structure(self._gradient(X), self._damping())
+
+    def _jacobian(self, X):
+        # S applied to the first index of the Hessian.
+        return apply_structure(np.swapaxes(self._hessian(X), 1, 2), self._damping()).swapaxes(1, 2)
+
+    def _damping(self):
+        return self.damping_ if self.damping_.any() else None
+
+    def _default_method(self):
+        return "avf" if self.fit_on == "steps" else "rk4"
+
+    def _default_step(self, method):
+        if self.fit_on == "steps" and method == "avf" and np.isfinite(self.dt_):
+            return self.dt_
+        return super()._default_step(method)
+
+    def _dynamics(self):
+        split = {}
+        if self._split is not None:
+            (kinetic, c_p), (potential, c_q) = self._split
+            split = dict(
+                kinetic_gradient=lambda p: kinetic.gradient_dot(p, c_p),
+                potential_gradient=lambda q: potential.gradient_dot(q, c_q),
+            )
+        return Dynamics(
+            self._vector_field, gradient=self._gradient, hessian=self._hessian,
+            damping=self._damping(), n_nodes=quadrature_nodes(self._space),
+            wrap=self._space.wrap if self.periodic_.any() else None, **split,
+        )
 
     def hamiltonian(self, X):
         """The learned Hamiltonian ``H~``, normalized to zero mean over the domain.
 
         Parameters
         ----------
-        X : array-like of shape (..., n_states)
-            States; any leading shape, e.g. the output of :meth:`simulate`.
+        X : array-like of shape (n_samples, n_states) or (..., n_states)
+            States, with any leading shape (e.g. the output of
+            :meth:`simulate`).
 
         Returns
         -------
@@ -159,19 +334,16 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
         """
         check_is_fitted(self)
         flat, lead = self._check_states(X)
-        values = self._in_blocks(
-            flat, lambda B: value_matrix(B, self.domain_, self.powers_) @ self.coef_,
-            self.powers_.shape[0],
-        )
-        return values.reshape(lead)
+        self._warn_outside(flat)
+        return self._hamiltonian(flat).reshape(lead)
 
     def gradient(self, X):
         """Gradient of the learned Hamiltonian, ``grad H~``.
 
         Parameters
         ----------
-        X : array-like of shape (..., n_states)
-            States.
+        X : array-like of shape (n_samples, n_states) or (..., n_states)
+            States, with any leading shape.
 
         Returns
         -------
@@ -180,4 +352,6 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
         """
         check_is_fitted(self)
         flat, lead = self._check_states(X)
+        self._warn_outside(flat)
         return self._gradient(flat).reshape(lead + (self.n_features_in_,))
+

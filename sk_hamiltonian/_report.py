@@ -1,10 +1,8 @@
-"""Pieces of the ``sk-hamiltonian`` command: data files, readable H~, the figure."""
+"""Pieces of the ``sk-hamiltonian`` command: data files and the figure."""
 
 import os
-from math import prod
 
 import numpy as np
-from numpy.polynomial import Legendre, Polynomial
 
 
 class UsageError(Exception):
@@ -101,72 +99,6 @@ def _load_csv(path):
     lengths = {piece.shape[0] for piece in pieces}
     X = np.stack(pieces) if len(lengths) == 1 else pieces
     return X, names[1:]
-
-
-def monomial_coefficients(model):
-    """Expand the learned ``H~`` in monomials of the original state variables.
-
-    Returns a dict mapping exponent tuples to coefficients (constant omitted).
-    """
-    powers, coef, domain = model.powers_, np.ravel(model.coef_), model.domain_
-    n_states = powers.shape[1]
-    degree = int(powers.sum(axis=1).max())
-    low, high = domain[:, 0], domain[:, 1]
-    # xi_i = a_i x_i + b_i maps the box onto [-1, 1].
-    a, b = 2.0 / (high - low), -(high + low) / (high - low)
-    tables = []
-    for i in range(n_states):
-        xi = Polynomial([b[i], a[i]])
-        rows = np.zeros((degree + 1, degree + 1))
-        for k in range(degree + 1):
-            c = Legendre.basis(k).convert(kind=Polynomial)(xi).coef
-            rows[k, : c.size] = c
-        tables.append(rows)
-    dense = np.zeros((degree + 1,) * n_states)
-    for alpha, c in zip(powers, coef):
-        term = np.asarray(c)
-        for i in range(n_states):
-            term = np.multiply.outer(term, tables[i][alpha[i]])
-        dense += term
-    out = {}
-    for index in zip(*np.nonzero(dense)):
-        if sum(index) > 0 and sum(index) <= degree:
-            out[tuple(int(e) for e in index)] = float(dense[index])
-    return out
-
-
-def format_hamiltonian(model, names, max_terms=8):
-    """``H~`` as a readable sum of its leading monomials (one line).
-
-    Terms are ranked by their largest size on the domain, ``|c| * max|x^alpha|``,
-    shown in graded order, and the rest summarized.
-    """
-    terms = monomial_coefficients(model)
-    reach = np.max(np.abs(model.domain_), axis=1)
-    size = {alpha: abs(c) * prod(reach[i] ** e for i, e in enumerate(alpha))
-            for alpha, c in terms.items()}
-    largest = max(size.values(), default=0.0)
-    # Round-off terms of an exactly representable H would only clutter the line.
-    ranked = [a for a in sorted(terms, key=lambda a: -size[a]) if size[a] > 1e-9 * largest]
-    if not ranked:
-        return "H~ = const"
-    shown = sorted(ranked[:max_terms], key=lambda alpha: (sum(alpha), [-e for e in alpha]))
-    parts = []
-    for alpha in shown:
-        factors = [
-            name if e == 1 else f"{name}^{e}" for name, e in zip(names, alpha) if e
-        ]
-        c = terms[alpha]
-        sign = "-" if c < 0 else "+"
-        parts.append(f"{sign} {abs(c):.4g} {'*'.join(factors)}")
-    text = " ".join(parts).lstrip("+ ")
-    if text.startswith("- "):
-        text = "-" + text[2:]
-    rest = ranked[max_terms:]
-    if rest:
-        share = size[rest[0]] / largest
-        text += f" + ... ({len(rest)} smaller terms, each below {share:.1%} of the largest)"
-    return "H~ = " + text + " + const"
 
 
 def draw_report(path, t, curves, truth, errors, model, rk4, avf, X, names, title):

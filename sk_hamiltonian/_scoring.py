@@ -46,12 +46,17 @@ def multistep_errors(model, Xt, n_steps=None, *, stride=1, substeps=ROLLOUT_SUBS
     Returns
     -------
     errors : ndarray of shape (n_trajectories,)
-        ``||X_hat - X||_F / ||X||_F`` per trajectory over all its predicted
-        segments; ``inf`` where a prediction failed.
+        Root-mean-square of ``(X_hat - X) / state_scale_`` per trajectory over
+        all its predicted segments (periodic variables the short way round):
+        errors in units of each variable's spread over the training states,
+        so they do not change when the data are translated. ``inf`` where a
+        prediction failed.
     """
     data = unpack_derivatives(Xt)
     times, observed = list(data.times), list(data.observed)
-    integrator = model._integrator("rk4")
+    # The model's own method: RK4 for a derivative fit (stepped a quarter of a
+    # sampling interval), AVF at the training step for a fit on steps.
+    integrator = model._integrator()
     starts, targets, rel_times, owner = [], [], [], []
     for k, (t, O) in enumerate(zip(times, observed)):
         horizon = t.shape[0] - 1 if n_steps is None else min(n_steps, t.shape[0] - 1)
@@ -67,13 +72,17 @@ def multistep_errors(model, Xt, n_steps=None, *, stride=1, substeps=ROLLOUT_SUBS
         scale = max(rel[-1], np.finfo(float).tiny)
         groups.setdefault((rel.shape[0], np.round(rel / scale, 9).tobytes()), []).append(i)
     squared_error = np.zeros(len(observed))
-    squared_norm = np.zeros(len(observed))
+    count = np.zeros(len(observed))
     failed = np.zeros(len(observed), dtype=bool)
     for members in groups.values():
         rel = rel_times[members[0]]
         if rel.shape[0] < 2:
             continue
-        max_step = np.min(np.diff(rel)) / substeps
+        max_step = (
+            np.min(np.diff(rel)) / substeps
+            if integrator.name == "rk4"
+            else model._default_step(integrator.name)
+        )
         Y, failed_at = integrate(integrator, np.stack([starts[i] for i in members]), rel, max_step)
         Y = np.swapaxes(Y, 0, 1)
         T = np.stack([targets[i] for i in members])
@@ -81,10 +90,11 @@ def multistep_errors(model, Xt, n_steps=None, *, stride=1, substeps=ROLLOUT_SUBS
         # A failed prediction holds its last finite, possibly huge, state; its
         # error is set to inf below, so an overflow here changes nothing.
         with np.errstate(over="ignore", invalid="ignore"):
-            np.add.at(squared_error, who, np.sum((Y - T) ** 2, axis=(1, 2)))
-        np.add.at(squared_norm, who, np.sum(T**2, axis=(1, 2)))
+            scaled = model._space.wrap_difference(Y - T) / model.state_scale_
+            np.add.at(squared_error, who, np.sum(scaled**2, axis=(1, 2)))
+        np.add.at(count, who, T.shape[1] * T.shape[2])
         failed[who[failed_at < rel.shape[0]]] = True
     with np.errstate(invalid="ignore", divide="ignore"):
-        errors = np.sqrt(squared_error / np.maximum(squared_norm, np.finfo(float).tiny))
+        errors = np.sqrt(squared_error / np.maximum(count, 1))
     errors[failed] = np.inf
     return errors

@@ -54,8 +54,8 @@ def solve_dense(A, b):
     return coef / (norms if coef.ndim == 1 else norms[:, None]), float(cond), int(rank)
 
 
-def solve_streaming(blocks, n_terms):
-    """Least squares through normal equations accumulated block by block.
+def normal_equations(blocks, n_terms):
+    """Accumulate ``A^T A`` and ``A^T b`` over row blocks of a design.
 
     Parameters
     ----------
@@ -68,10 +68,8 @@ def solve_streaming(blocks, n_terms):
 
     Returns
     -------
-    coef, cond, rank
-        As in :func:`solve_dense`; ``cond`` is the square root of the
-        condition number of the equilibrated normal matrix, that is the
-        condition number of the equilibrated design.
+    gram : ndarray of shape (n_terms, n_terms)
+    rhs : ndarray of shape (n_terms,) or (n_terms, n_targets)
     """
     gram = np.zeros((n_terms, n_terms))
     rhs = None
@@ -79,8 +77,28 @@ def solve_streaming(blocks, n_terms):
         gram += A.T @ A
         contribution = A.T @ b
         rhs = contribution if rhs is None else rhs + contribution
+    return gram, rhs
+
+
+def solve_normal(gram, rhs):
+    """Least squares from its normal equations, by an eigen pseudo-inverse.
+
+    Parameters
+    ----------
+    gram : ndarray of shape (n_terms, n_terms)
+        ``A^T A``; not modified.
+    rhs : ndarray of shape (n_terms,) or (n_terms, n_targets)
+        ``A^T b``.
+
+    Returns
+    -------
+    coef, cond, rank
+        As in :func:`solve_dense`; ``cond`` is the square root of the
+        condition number of the equilibrated normal matrix, that is the
+        condition number of the equilibrated design.
+    """
     norms = _column_norms(np.diag(gram).copy())
-    gram /= np.outer(norms, norms)
+    gram = gram / np.outer(norms, norms)
     rhs = rhs / (norms if rhs.ndim == 1 else norms[:, None])
     eigenvalues, eigenvectors = linalg.eigh(gram, check_finite=False)
     # Pseudo-inverse with the same relative cut-off as lstsq: eigenvalues of the
@@ -94,6 +112,50 @@ def solve_streaming(blocks, n_terms):
     cond = np.sqrt(eigenvalues[-1] / smallest) if smallest > 0 else np.inf
     coef = coef / (norms if coef.ndim == 1 else norms[:, None])
     return coef, float(cond), int(keep.sum())
+
+
+def solve_streaming(blocks, n_terms):
+    """Least squares through normal equations accumulated block by block.
+
+    Memory is ``O(n_terms**2)`` whatever the number of rows. See
+    :func:`normal_equations` and :func:`solve_normal`.
+    """
+    return solve_normal(*normal_equations(blocks, n_terms))
+
+
+def solve_nonnegative_tail(solve, n_columns, n_tail):
+    """Least squares whose last ``n_tail`` unknowns are constrained to be ``>= 0``.
+
+    An active-set loop for a handful of constrained unknowns (damping
+    coefficients): solve without constraints; while a constrained unknown is
+    negative, fix the most negative one at zero and solve again.
+
+    Parameters
+    ----------
+    solve : callable
+        ``solve(keep) -> (coef, cond, rank)`` for the columns selected by the
+        boolean mask ``keep``.
+    n_columns : int
+        Number of unknowns.
+    n_tail : int
+        How many of the last unknowns must be non-negative.
+
+    Returns
+    -------
+    coef : ndarray of shape (n_columns,)
+        Zero where an unknown was fixed.
+    cond, rank
+        Of the last solve.
+    """
+    keep = np.ones(n_columns, dtype=bool)
+    while True:
+        sub, cond, rank = solve(keep)
+        coef = np.zeros(n_columns)
+        coef[keep] = sub
+        tail = coef[n_columns - n_tail :]
+        if n_tail == 0 or tail.min() >= 0:
+            return coef, cond, rank
+        keep[n_columns - n_tail + int(np.argmin(tail))] = False
 
 
 def _column_norms(squared):

@@ -1,34 +1,52 @@
 """The non-structure-preserving baseline: fit each component of the vector field."""
 
+import numpy as np
 
 from ._base import BaseTrajectoryRegressor
-from ._basis import n_basis_functions, total_degree_powers, value_matrix
-from ._integrate import METHODS
-from ._solvers import solve_dense, solve_streaming
+from ._design import quadrature_nodes, vector_field_blocks
+from ._integrate import Dynamics
 
 
 class VectorFieldRegressor(BaseTrajectoryRegressor):
-    """Component-wise polynomial regression of the vector field (non-SP baseline).
+    """Component-wise regression of the vector field (the non-SP baseline).
 
     Each component of ``dx/dt = f(x)`` is fitted separately by least squares in
-    the same total-degree tensor Legendre space as :class:`HamiltonianRegressor`
-    (constant included), as in Wu & Xiu (2018). The learned system is in
-    general not Hamiltonian and conserves nothing; it is the baseline every
-    comparison of the paper uses.
+    the same tensor-product space as :class:`HamiltonianRegressor` (constant
+    included), as in Wu & Xiu (2018). The learned system is in general not
+    Hamiltonian and conserves nothing; it is the baseline every comparison of
+    the paper uses, and it takes the same model-space parameters so that
+    comparisons stay fair.
 
-    Unlike :class:`HamiltonianRegressor` it is a general polynomial regressor:
-    the number of state variables need not be even and, used on 2-D ``X``, the
-    targets ``y`` may be any 1-D or 2-D array. :meth:`simulate` requires ``y``
-    to have been the time derivatives of ``X``.
+    Unlike :class:`HamiltonianRegressor` it is a general regressor: the number
+    of state variables need not be even (unless ``momentum_degree`` or
+    ``separable`` is used) and, used on 2-D ``X``, the targets ``y`` may be any
+    1-D or 2-D array. With fewer samples than basis functions it returns the
+    minimum-norm least-squares solution, with an
+    :class:`~sk_hamiltonian.IllConditionedWarning`. :meth:`simulate` requires
+    ``y`` to have been the time derivatives of ``X``.
 
     Parameters
     ----------
     degree : int, default=3
-        Total degree ``n`` of each component. Unknowns:
-        ``2d * C(n + 2d, 2d)``.
+        Largest total degree ``n`` of each component. Unknowns with the
+        defaults: ``2d * C(n + 2d, 2d)``.
     domain : array-like of shape (n_states, 2), default=None
-        The box carrying the Legendre basis; None uses the bounding box of the
-        training states.
+        The box carrying the basis (one period for periodic variables); None
+        uses the bounding box of the training states, and ``[-pi, pi)`` for
+        periodic variables.
+    periodic : array-like of shape (n_states,) of bool, default=None
+        Angles, with a trigonometric basis; as in :class:`HamiltonianRegressor`.
+    momentum_degree : int, default=None
+        Largest total degree in the momenta (the first half of the variables)
+        of each component; None: no limit.
+    separable : bool, default=False
+        No basis function mixes momenta and positions.
+    max_interaction : int, default=None
+        Most state variables one basis function depends on; None: no limit.
+    fit_on : {"derivatives", "steps"}, default="derivatives"
+        ``"steps"``: fit ``x1 - x0 = dt int_0^1 f(x0 + s (x1 - x0)) ds`` on the
+        observed steps instead of estimated derivatives (derivative layout
+        input only), the counterpart of the structure-preserving steps fit.
     solver : {"auto", "lstsq", "normal"}, default="auto"
         As in :class:`HamiltonianRegressor`.
 
@@ -38,7 +56,10 @@ class VectorFieldRegressor(BaseTrajectoryRegressor):
         Column ``i`` holds the coefficients of output ``i`` (of component ``i``
         of the vector field); 1-D when ``y`` was 1-D.
     powers_ : ndarray of shape (n_basis, n_states)
-        Multi-indices, the constant first.
+        Multi-indices, the constant first (signed frequencies for periodic
+        variables, as in :class:`HamiltonianRegressor`).
+    periodic_ : ndarray of shape (n_states,) of bool
+        Which variables are periodic.
     domain_ : ndarray of shape (n_states, 2)
         The box the basis lives on.
     cond_ : float
@@ -49,6 +70,14 @@ class VectorFieldRegressor(BaseTrajectoryRegressor):
         Number of fitted coefficients, ``coef_.size``.
     solver_ : str
         The solver used.
+    dt_ : float
+        Median time step of the training trajectories (NaN for 2-D input).
+    time_scale_ : float
+        ``1 / rho``, rho the 90th percentile of the spectral radius of the
+        learned field's Jacobian over the training states (NaN when ``y`` was
+        not the time derivative of ``X``); sets the default integration step.
+    state_scale_ : ndarray of shape (n_states,)
+        Standard deviation of each state variable over the training states.
     n_features_in_ : int
         Number of state variables.
     feature_names_in_ : ndarray of shape (`n_features_in_`,)
@@ -70,42 +99,42 @@ class VectorFieldRegressor(BaseTrajectoryRegressor):
     array([[-0.25,  0.5 ]])
     """
 
-    _parameter_constraints = {**BaseTrajectoryRegressor._parameter_constraints}
+    _include_constant = True
 
-    def _design_shape(self, n_samples, n_states):
-        return n_samples, n_basis_functions(n_states, self.degree, include_constant=True)
+    def _rows_per_sample(self, n_states):
+        return 1
 
-    def _fit_coef(self, X, y):
-        self.powers_ = total_degree_powers(X.shape[1], self.degree, include_constant=True)
-        if self.solver_ == "lstsq":
-            A = value_matrix(X, self.domain_, self.powers_)
-            self.coef_, self.cond_, self.rank_ = solve_dense(A, y)
-            return
-        rows = max(1, 20_000_000 // self.powers_.shape[0])
-        blocks = (
-            (value_matrix(X[i : i + rows], self.domain_, self.powers_), y[i : i + rows])
-            for i in range(0, X.shape[0], rows)
+    def _fit_coef(self, data):
+        space = self._space
+        self.coef_, self.cond_, self.rank_ = self._solve_blocks(
+            lambda: vector_field_blocks(
+                space, data, self.fit_on, quadrature_nodes(space, of_gradient=False)
+            ),
+            space.n_terms,
         )
-        self.coef_, self.cond_, self.rank_ = solve_streaming(blocks, self.powers_.shape[0])
 
     def _vector_field(self, X):
         return self._in_blocks(
-            X, lambda B: value_matrix(B, self.domain_, self.powers_) @ self.coef_,
-            self.powers_.shape[0],
+            X, lambda B: self._space.value_dot(B, self.coef_),
+            self._space.n_terms * self._space.layout.n_slots,
         )
 
-    def _integrator(self, method):
-        if self.coef_.ndim != 2 or self.coef_.shape[1] != self.n_features_in_:
+    def _is_vector_field(self):
+        return self.coef_.ndim == 2 and self.coef_.shape[1] == self.n_features_in_
+
+    def _jacobian(self, X):
+        if not self._is_vector_field():
+            return None
+        # J[s, c, i] = d f_c / d x_i = sum_j coef[j, c] d_i phi_j.
+        return np.einsum("sij,jc->sci", self._space.gradients(X), self.coef_)
+
+    def _dynamics(self):
+        if not self._is_vector_field():
             raise ValueError(
                 "simulate needs a vector field: fit with y the time derivatives of X "
                 f"({self.n_features_in_} outputs); this model was fitted with "
                 f"{1 if self.coef_.ndim == 1 else self.coef_.shape[1]} output(s)."
             )
-        if method == "avf":
-            raise ValueError(
-                "method='avf' needs a Hamiltonian, which VectorFieldRegressor does not "
-                "learn; use method='rk4', or HamiltonianRegressor."
-            )
-        if method not in METHODS:
-            raise ValueError(f"method must be one of ['rk4']; got {method!r}.")
-        return METHODS[method](self._vector_field)
+        return Dynamics(
+            self._vector_field, wrap=self._space.wrap if self.periodic_.any() else None
+        )

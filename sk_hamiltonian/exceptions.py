@@ -52,3 +52,13 @@ class IllConditionedWarning(UserWarning):
     in a high-degree space); more trajectories, a smaller ``domain`` or a lower
     ``degree`` help.
     """
+
+
+class ConservationWarning(UserWarning):
+    """The learned energy trends along the training trajectories.
+
+    A conservative model fitted to data whose learned energy ``H~`` rises or
+    falls along the trajectories: the data look dissipative or driven, and
+    ``HamiltonianRegressor(damping=True)`` may fit them better. Also raised
+    when a fitted damping is not backed by a loss of energy in the data.
+    """

@@ -81,7 +81,7 @@ def count_terms(estimator, n_states, params=None):
     if params:
         estimator = clone(estimator).set_params(**params)
     final = _final_regressor(estimator)
-    per_target = final._design_shape(1, n_states)[1]
+    per_target = final._n_terms(n_states)
     # The baseline fits every component of the vector field separately.
     return int(per_target * (n_states if isinstance(final, VectorFieldRegressor) else 1))
 

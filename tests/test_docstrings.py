@@ -7,7 +7,13 @@ import pytest
 
 validate = pytest.importorskip("numpydoc.validate").validate
 
-PUBLIC_MODULES = ["sk_hamiltonian", "sk_hamiltonian.datasets", "sk_hamiltonian.model_selection"]
+PUBLIC_MODULES = [
+    "sk_hamiltonian",
+    "sk_hamiltonian.datasets",
+    "sk_hamiltonian.inspection",
+    "sk_hamiltonian.model_selection",
+    "sk_hamiltonian.plotting",
+]
 
 # Checks not enforced: extended summaries (ES01), See Also (SA01) and Examples
 # (EX01) are written where they help, not on every method; GL08 is for objects

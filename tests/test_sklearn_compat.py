@@ -51,6 +51,13 @@ HAMILTONIAN_EXPECTED_FAILURES = {
     "check_fit_idempotent": Y_SHAPE,
     "check_fit_check_is_fitted": Y_SHAPE,
     "check_n_features_in": Y_SHAPE,
+    "check_sample_weights_pandas_series": Y_SHAPE,
+    "check_sample_weights_not_an_array": Y_SHAPE,
+    "check_sample_weights_list": Y_SHAPE,
+    "check_sample_weights_shape": Y_SHAPE,
+    "check_sample_weights_not_overwritten": Y_SHAPE,
+    "check_sample_weight_equivalence_on_dense_data": Y_SHAPE,
+    "check_fit2d_1sample": Y_SHAPE,
 }
 
 

@@ -1,42 +1,43 @@
-"""The averaged-vector-field method, which conserves a polynomial Hamiltonian exactly."""
-
-import math
+"""The averaged-vector-field method: exact energy conservation (or dissipation)."""
 
 import numpy as np
 
-from .base import FixedStepIntegrator
+from .base import FixedStepIntegrator, apply_inverse_symplectic
 
 
-def apply_inverse_symplectic(g):
-    """Return ``J^{-1} g`` for ``J = [[0, I], [-I, 0]]``, row by row.
+def apply_structure(g, damping=None):
+    """``(J^{-1} - Gamma) g``: Hamilton's equations with linear damping, row by row.
 
-    ``J^{-1} = [[0, -I], [I, 0]]``, so ``(p, q)``-gradients map to
-    ``(-dH/dq, dH/dp)``: Hamilton's equations.
+    The momentum rows get ``-dH/dq - gamma * dH/dp``, the position rows
+    ``dH/dp``. Without damping this is :func:`apply_inverse_symplectic`.
     """
-    d = g.shape[-1] // 2
-    return np.concatenate([-g[..., d:], g[..., :d]], axis=-1)
+    out = apply_inverse_symplectic(g)
+    if damping is not None:
+        d = g.shape[-1] // 2
+        out[..., :d] -= damping * g[..., :d]
+    return out
 
 
 class AveragedVectorField(FixedStepIntegrator):
-    """Averaged-vector-field (AVF) method for ``du/dt = J^{-1} grad H(u)``.
+    """Averaged-vector-field (AVF) method, a discrete-gradient integrator.
 
-    One step solves ``y1 = y0 + h J^{-1} int_0^1 grad H(y0 + xi (y1 - y0)) dxi``.
-    Because ``J^{-1}`` is skew, ``H(y1) = H(y0)`` exactly when the integral is
-    exact. For a polynomial ``H`` of degree ``n`` the integrand has degree
-    ``n - 1`` in ``xi``, so ``ceil(n / 2)`` Gauss-Legendre nodes make the
-    quadrature exact, and the conservation holds to round-off at any step size.
-    The implicit equation is solved by simplified Newton iterations with the
-    matrix ``I - (h / 2) J^{-1} hess H(y0)`` until the update is at round-off.
+    One step solves ``y1 = y0 + h S int_0^1 grad H(y0 + xi (y1 - y0)) dxi``
+    with ``S = J^{-1}`` for a conservative model and ``S = J^{-1} - Gamma``
+    with linear damping. Writing ``g`` for the averaged gradient, ``H(y1) -
+    H(y0) = g . (y1 - y0) = h g . S g``: zero when ``S`` is skew (the energy
+    is conserved exactly) and ``-h sum_i gamma_i g_{p_i}**2`` with damping,
+    the discrete form of ``dH/dt = -sum_i gamma_i (dq_i/dt)**2``, since
+    ``g_p = (q1 - q0) / h``. Both hold to round-off when the average is
+    exact: for a polynomial ``H`` of degree ``n`` the integrand has degree
+    ``n - 1`` in ``xi`` and ``ceil(n / 2)`` Gauss-Legendre nodes suffice (the
+    model says how many it needs, more for trigonometric terms). The
+    implicit equation is solved by simplified Newton iterations with the
+    matrix ``I - (h / 2) S hess H(y0)`` until the update is at round-off.
 
     Parameters
     ----------
-    grad : callable
-        ``grad H``, mapping ``(n, n_features)`` to ``(n, n_features)``.
-    hess : callable
-        Hessian of ``H``, mapping ``(n, n_features)`` to
-        ``(n, n_features, n_features)``.
-    degree : int
-        Polynomial degree of ``H``; sets the number of quadrature nodes.
+    dynamics : Dynamics
+        A model with ``gradient``, ``hessian`` and ``n_nodes``.
     rtol : float, default=1e-14
         Newton stops when the update is below ``rtol`` times the state's size.
     max_iter : int, default=100
@@ -44,28 +45,36 @@ class AveragedVectorField(FixedStepIntegrator):
     """
 
     conserves_energy = True
+    name = "avf"
 
-    def __init__(self, grad, hess, degree, rtol=1e-14, max_iter=100):
-        self.grad = grad
-        self.hess = hess
+    def __init__(self, dynamics, rtol=1e-14, max_iter=100):
         self.rtol = rtol
         self.max_iter = max_iter
-        nodes, weights = np.polynomial.legendre.leggauss(max(1, math.ceil(degree / 2)))
+        super().__init__(dynamics)
+        nodes, weights = np.polynomial.legendre.leggauss(max(1, dynamics.n_nodes))
         self.nodes = 0.5 * (nodes + 1.0)
         self.weights = 0.5 * weights
-        super().__init__(lambda y: apply_inverse_symplectic(grad(y)))
+
+    def _check(self, dynamics):
+        if dynamics.gradient is None or dynamics.hessian is None:
+            raise ValueError(
+                "method='avf' needs a Hamiltonian, which this model does not learn; "
+                "use method='rk4', or HamiltonianRegressor."
+            )
 
     def _averaged_gradient(self, y0, y1):
         n = y0.shape[0]
         diff = y1 - y0
         points = y0[None] + self.nodes[:, None, None] * diff[None]
-        grads = self.grad(points.reshape(-1, y0.shape[1])).reshape(points.shape)
+        grads = self.dynamics.gradient(points.reshape(-1, y0.shape[1])).reshape(points.shape)
         return np.tensordot(self.weights, grads, axes=1).reshape(n, -1)
 
     def _step_impl(self, y, h):
+        damping = self.dynamics.damping
         n_features = y.shape[1]
-        jacobian = np.eye(n_features) - (0.5 * h) * apply_inverse_symplectic(
-            np.swapaxes(self.hess(y), 1, 2)
+        # S applied to the first index of the Hessian: the Jacobian of S grad H.
+        jacobian = np.eye(n_features) - (0.5 * h) * apply_structure(
+            np.swapaxes(self.dynamics.hessian(y), 1, 2), damping
         ).swapaxes(1, 2)
         with np.errstate(all="ignore"):
             newton_matrix = np.linalg.inv(jacobian)
@@ -75,10 +84,8 @@ class AveragedVectorField(FixedStepIntegrator):
         previous = np.full(y.shape[0], np.inf)
         for _ in range(self.max_iter):
             todo = ~converged
-            residual = (
-                y1[todo] - y[todo] - h * apply_inverse_symplectic(
-                    self._averaged_gradient(y[todo], y1[todo])
-                )
+            residual = y1[todo] - y[todo] - h * apply_structure(
+                self._averaged_gradient(y[todo], y1[todo]), damping
             )
             delta = np.einsum("bij,bj->bi", newton_matrix[todo], residual)
             y1[todo] -= delta

@@ -1,4 +1,4 @@
-"""Base class and driver shared by the fixed-step integrators."""
+"""Base class, model interface and driver shared by the fixed-step integrators."""
 
 import math
 
@@ -7,24 +7,90 @@ import numpy as np
 from ..exceptions import SimulationError
 
 
-class FixedStepIntegrator:
-    """Base class of the fixed-step integrators of ``dy/dt = f(y)``.
+def apply_inverse_symplectic(g):
+    """Return ``J^{-1} g`` for ``J = [[0, I], [-I, 0]]``, row by row.
 
-    Integrators work on a batch of states of shape ``(n_states, n_features)``
-    at once. Subclasses implement :meth:`_step_impl`; callers use :meth:`step`.
+    ``J^{-1} = [[0, -I], [I, 0]]``, so ``(p, q)``-gradients map to
+    ``(-dH/dq, dH/dp)``: Hamilton's equations.
+    """
+    d = g.shape[-1] // 2
+    return np.concatenate([-g[..., d:], g[..., :d]], axis=-1)
+
+
+class Dynamics:
+    """What an integrator may ask of a model of ``dy/dt = f(y)``.
+
+    Every model gives its vector field. A Hamiltonian model also gives
+    ``grad H`` and its Hessian (for the energy-conserving method), optionally
+    a linear damping ``gamma`` (``dp/dt = -dH/dq - gamma * dH/dp``), and, when
+    ``H = T(p) + V(q)``, the two partial gradients that explicit symplectic
+    methods step with.
 
     Parameters
     ----------
-    fun : callable
-        Right-hand side ``f``, mapping an array of shape ``(n, n_features)`` to an
-        array of the same shape.
+    field : callable
+        ``f``, mapping ``(n, n_features)`` to ``(n, n_features)``.
+    gradient : callable, default=None
+        ``grad H``, same shapes; None for a model without a Hamiltonian.
+    hessian : callable, default=None
+        Hessian of ``H``, mapping ``(n, n_features)`` to
+        ``(n, n_features, n_features)``.
+    damping : ndarray of shape (n_features // 2,), default=None
+        Linear damping coefficients; None (or all zero) for a conservative model.
+    kinetic_gradient, potential_gradient : callable, default=None
+        ``dT/dp`` and ``dV/dq`` of a separable ``H``, mapping ``(n, d)`` to
+        ``(n, d)``; None for a model that is not separable.
+    n_nodes : int, default=1
+        Gauss-Legendre nodes that make the average of ``grad H`` over a
+        segment exact (or accurate to round-off), for the AVF method.
+    wrap : callable, default=None
+        Maps states to their canonical representatives (periodic variables
+        into their period); applied between output times.
     """
 
-    #: Whether the method conserves a first integral exactly (set by subclasses).
-    conserves_energy = False
+    def __init__(
+        self, field, *, gradient=None, hessian=None, damping=None, kinetic_gradient=None,
+        potential_gradient=None, n_nodes=1, wrap=None,
+    ):
+        self.field = field
+        self.gradient = gradient
+        self.hessian = hessian
+        self.damping = None if damping is None or not np.any(damping) else np.asarray(damping)
+        self.kinetic_gradient = kinetic_gradient
+        self.potential_gradient = potential_gradient
+        self.n_nodes = n_nodes
+        self.wrap = wrap
 
-    def __init__(self, fun):
-        self.fun = fun
+
+class FixedStepIntegrator:
+    """Base class of the fixed-step integrators.
+
+    Integrators work on a batch of states of shape ``(n_states, n_features)``
+    at once. Subclasses implement :meth:`_step_impl` and check in
+    :meth:`_check` that the model gives what they need; callers use
+    :meth:`step`.
+
+    Parameters
+    ----------
+    dynamics : Dynamics or callable
+        The model; a callable is taken as the vector field alone.
+    """
+
+    #: Whether the method conserves (or dissipates exactly as the model does)
+    #: the model's energy (set by subclasses).
+    conserves_energy = False
+    #: Name of the method in :data:`METHODS` (set by subclasses).
+    name = None
+
+    def __init__(self, dynamics):
+        if not isinstance(dynamics, Dynamics):
+            dynamics = Dynamics(dynamics)
+        self.dynamics = dynamics
+        self.fun = dynamics.field
+        self._check(dynamics)
+
+    def _check(self, dynamics):
+        """Raise ValueError if the model lacks what the method needs."""
 
     def step(self, y, h):
         """Advance a batch of states by one step.
@@ -54,7 +120,9 @@ def integrate(integrator, y0, t, max_step=None):
 
     Each interval ``[t[k], t[k + 1]]`` is split into the fewest equal steps no
     longer than ``max_step``. A trajectory whose state becomes non-finite is
-    frozen at its last finite state and reported in ``failed_at``; the others go on.
+    frozen at its last finite state and reported in ``failed_at``; the others
+    go on. Periodic variables are wrapped at every output time if the model
+    says how (``Dynamics.wrap``).
 
     Parameters
     ----------
@@ -65,7 +133,7 @@ def integrate(integrator, y0, t, max_step=None):
     t : ndarray of shape (n_times,)
         Strictly increasing output times.
     max_step : float or None
-        Largest step; None steps from one output time to the next.
+        Largest step; None (or infinity) steps from one output time to the next.
 
     Returns
     -------
@@ -76,16 +144,18 @@ def integrate(integrator, y0, t, max_step=None):
         For each trajectory, the index into ``t`` of the first output time it
         could not reach, or ``n_times`` if it reached them all.
     """
-    y = np.array(y0, dtype=float)
+    wrap = integrator.dynamics.wrap or (lambda y: y)
+    y = wrap(np.array(y0, dtype=float))
     n_times = t.shape[0]
     out = np.empty((n_times,) + y.shape)
     out[0] = y
     failed_at = np.full(y.shape[0], n_times, dtype=np.intp)
     active = np.arange(y.shape[0])
+    substeps = max_step is not None and math.isfinite(max_step)
     with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
         for k in range(n_times - 1):
             interval = t[k + 1] - t[k]
-            n_sub = 1 if max_step is None else max(1, math.ceil(interval / max_step - 1e-9))
+            n_sub = max(1, math.ceil(interval / max_step - 1e-9)) if substeps else 1
             h = interval / n_sub
             y_active = y[active]
             for _ in range(n_sub):
@@ -94,7 +164,7 @@ def integrate(integrator, y0, t, max_step=None):
             if not finite.all():
                 failed_at[active[~finite]] = k + 1
                 active, y_active = active[finite], y_active[finite]
-            y[active] = y_active
+            y[active] = wrap(y_active)
             out[k + 1] = y
             if active.size == 0:
                 out[k + 2 :] = y

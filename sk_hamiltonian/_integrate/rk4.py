@@ -6,14 +6,16 @@ from .base import FixedStepIntegrator
 class RK4(FixedStepIntegrator):
     """Classical fourth-order Runge-Kutta method, the paper's solver.
 
-    It does not conserve the Hamiltonian exactly: the deviation of a conserved
-    quantity decreases like ``h**4``.
+    It works for every model. It does not conserve the Hamiltonian exactly:
+    the deviation of a conserved quantity decreases like ``h**4``.
 
     Parameters
     ----------
-    fun : callable
-        Right-hand side, mapping ``(n, n_features)`` to ``(n, n_features)``.
+    dynamics : Dynamics or callable
+        The model, or its vector field.
     """
+
+    name = "rk4"
 
     def _step_impl(self, y, h):
         f = self.fun

@@ -1,0 +1,196 @@
+"""Training data and the least-squares designs built from it.
+
+The regressors fit linear models, so every fit is a least-squares problem
+``A c ≈ b`` assembled in row blocks from a :class:`TrainingData`:
+
+- ``fit_on="derivatives"``: one row group per state, the basis (or its
+  gradient) at the state against the estimated time derivative;
+- ``fit_on="steps"``: one row group per observed step ``x0 -> x1`` of a
+  trajectory, the basis averaged over the segment with Gauss-Legendre nodes
+  against ``(x1 - x0) / dt``: the averaged-vector-field map is linear in the
+  coefficients, so no derivative is estimated at all.
+
+Blocks stay a few tens of megabytes whatever the number of samples, so the
+streaming solvers run in bounded memory.
+"""
+
+import math
+
+import numpy as np
+
+# Entries of one design block (float64): 20 million is 160 MB.
+BLOCK_ENTRIES = 20_000_000
+
+
+class TrainingData:
+    """States, targets and (optionally) steps and weights of one fit.
+
+    Parameters
+    ----------
+    states : ndarray of shape (n_samples, n_states)
+        States the derivative fit evaluates the basis at.
+    derivatives : ndarray of shape (n_samples, n_targets) or None
+        Targets of the derivative fit.
+    sample_weight : ndarray of shape (n_samples,) or None
+        Weights of the states.
+    trajectories : list of (times, states) or None
+        The trajectories the states came from (derivative layout input), for
+        the steps fit and the energy check.
+    trajectory_weight : ndarray of shape (n_trajectories,) or None
+        Weights of the trajectories, applied to their steps.
+    """
+
+    def __init__(self, states, derivatives, sample_weight=None, trajectories=None,
+                 trajectory_weight=None):
+        self.states = states
+        self.derivatives = derivatives
+        self.sample_weight = sample_weight
+        self.trajectories = trajectories
+        self.trajectory_weight = trajectory_weight
+
+    def steps(self, space):
+        """Observed steps ``(x0, dx, dt, weight)`` of every trajectory.
+
+        ``dx`` takes periodic variables the short way round the circle, so a
+        trajectory given with wrapped angles still has small steps.
+        """
+        if self.trajectories is None:
+            raise ValueError(
+                "fit_on='steps' fits the observed steps of trajectories: pass the "
+                "output of DerivativeTransformer (trajectories with their times), not "
+                "2-D states with derivatives."
+            )
+        starts, moves, dts, weights = [], [], [], []
+        for k, (t, S) in enumerate(self.trajectories):
+            starts.append(S[:-1])
+            moves.append(space.wrap_difference(np.diff(S, axis=0)))
+            dts.append(np.diff(t))
+            w = 1.0 if self.trajectory_weight is None else self.trajectory_weight[k]
+            weights.append(np.full(S.shape[0] - 1, w))
+        x0 = np.concatenate(starts)
+        if x0.shape[0] == 0:
+            raise ValueError(
+                "fit_on='steps' needs trajectories with at least two samples; every "
+                "trajectory here has one."
+            )
+        return x0, np.concatenate(moves), np.concatenate(dts), np.concatenate(weights)
+
+    def n_rows(self, fit_on):
+        """Number of state (or step) row groups the fit will have."""
+        if fit_on == "steps" and self.trajectories is not None:
+            return sum(max(0, S.shape[0] - 1) for _, S in self.trajectories)
+        return self.states.shape[0]
+
+
+def segment_nodes(n_nodes):
+    """Gauss-Legendre nodes and weights on ``[0, 1]``."""
+    nodes, weights = np.polynomial.legendre.leggauss(max(1, n_nodes))
+    return 0.5 * (nodes + 1.0), 0.5 * weights
+
+
+def averaged(evaluate, x0, dx, n_nodes):
+    """``int_0^1 evaluate(x0 + s dx) ds`` by Gauss-Legendre quadrature."""
+    nodes, weights = segment_nodes(n_nodes)
+    total = None
+    for s, w in zip(nodes, weights):
+        part = w * evaluate(x0 + s * dx)
+        total = part if total is None else total + part
+    return total
+
+
+def symplectic_targets(y):
+    """``J dx/dt`` for ``J = [[0, I], [-I, 0]]``: the gradient the data ask for."""
+    d = y.shape[-1] // 2
+    return np.concatenate([y[..., d:], -y[..., :d]], axis=-1)
+
+
+def _rows_per_block(width):
+    return max(1, BLOCK_ENTRIES // max(1, width))
+
+
+def hamiltonian_blocks(space, data, fit_on, n_nodes, damping=False):
+    """Row blocks ``(A, b)`` of the structure-preserving fit.
+
+    Each state (or step) gives ``n_states`` rows, ``grad phi(x) . c ≈ J dx/dt``
+    (or the gradient averaged over the step). With ``damping``, ``d`` columns
+    follow the basis: in the row of ``-dp_i/dt`` the observed ``dq_i/dt``,
+    so that ``-dp/dt = dH/dq + gamma * dq/dt`` is linear in ``(c, gamma)``.
+
+    Yields
+    ------
+    A : ndarray of shape (n_rows, n_terms [+ d])
+    b : ndarray of shape (n_rows,)
+    """
+    m, n_terms = space.n_states, space.n_terms
+    d = m // 2
+    width = m * (n_terms + (d if damping else 0))
+    if fit_on == "steps":
+        x0, dx, dt, weight = data.steps(space)
+        rate = dx / dt[:, None]
+
+        def basis(rows):
+            return averaged(space.gradients, x0[rows], dx[rows], n_nodes)
+    else:
+        x0, rate, weight = data.states, data.derivatives, data.sample_weight
+
+        def basis(rows):
+            return space.gradients(x0[rows])
+    step = _rows_per_block(width)
+    for start in range(0, x0.shape[0], step):
+        rows = slice(start, start + step)
+        G = basis(rows)  # (n, m, n_terms)
+        targets = symplectic_targets(rate[rows])
+        if damping:
+            extra = np.zeros(G.shape[:2] + (d,))
+            idx = np.arange(d)
+            extra[:, d + idx, idx] = rate[rows][:, d:]  # observed dq/dt in the -dp/dt rows
+            G = np.concatenate([G, extra], axis=2)
+        if weight is not None:
+            root = np.sqrt(weight[rows])
+            G = G * root[:, None, None]
+            targets = targets * root[:, None]
+        yield G.reshape(-1, G.shape[2]), targets.ravel()
+
+
+def vector_field_blocks(space, data, fit_on, n_nodes):
+    """Row blocks ``(A, b)`` of the component-wise fit: ``phi(x) . C ≈ dx/dt``.
+
+    Yields
+    ------
+    A : ndarray of shape (n_rows, n_terms)
+    b : ndarray of shape (n_rows, n_targets) or (n_rows,)
+    """
+    if fit_on == "steps":
+        x0, dx, dt, weight = data.steps(space)
+        rate = dx / dt[:, None]
+
+        def basis(rows):
+            return averaged(space.values, x0[rows], dx[rows], n_nodes)
+    else:
+        x0, rate, weight = data.states, data.derivatives, data.sample_weight
+
+        def basis(rows):
+            return space.values(x0[rows])
+    step = _rows_per_block(space.n_terms * space.n_states)
+    for start in range(0, x0.shape[0], step):
+        rows = slice(start, start + step)
+        A, b = basis(rows), rate[rows]
+        if weight is not None:
+            root = np.sqrt(weight[rows])
+            A = A * root[:, None]
+            b = b * (root if b.ndim == 1 else root[:, None])
+        yield A, b
+
+
+def quadrature_nodes(space, of_gradient=True, extra_for_periodic=4):
+    """Gauss-Legendre nodes that average this space's functions exactly along a segment.
+
+    A polynomial of degree ``k`` along a segment needs ``ceil((k + 1) / 2)``
+    nodes: ``ceil(n / 2)`` for the gradient of a degree-``n`` basis, ``ceil((n
+    + 1) / 2)`` for the basis itself. Trigonometric factors are not
+    polynomials along a segment; a few more nodes bring the quadrature error
+    to round-off for the short segments of sampled data and integration steps.
+    """
+    k = space.degree - 1 if of_gradient else space.degree
+    n = max(1, math.ceil((k + 1) / 2))
+    return n + (extra_for_periodic if space.periodic.any() else 0)

@@ -1,0 +1,124 @@
+"""Real Fourier series on a period: the 1-D family for angles.
+
+A sibling of :mod:`.legendre`: a variable ``x`` with period ``[low, high)`` is
+mapped to the angle ``theta = 2 pi (x - low) / (high - low)``
+(:func:`period_to_angle`), where :func:`fourier_tables` evaluates the real
+trigonometric basis and its derivatives. Column ``0`` of a table is ``1``,
+column ``2k - 1`` is ``cos(k theta)`` and column ``2k`` is ``sin(k theta)``;
+the *frequency* ``k`` is what counts toward a total degree. In a multi-index a
+signed frequency names a column: ``+k`` the cosine, ``-k`` the sine
+(:func:`fourier_column`).
+"""
+
+import numpy as np
+
+
+def period_to_angle(x, low, high):
+    """Map the period ``[low, high)`` onto angles ``[0, 2 pi)`` (without wrapping).
+
+    Parameters
+    ----------
+    x : ndarray
+        Points in the original coordinate; points outside the period are
+        not wrapped, since the basis is periodic.
+    low, high : float or ndarray
+        Ends of the period (broadcast against ``x``).
+
+    Returns
+    -------
+    theta : ndarray
+        Angles.
+    scale : float or ndarray
+        ``d theta / d x = 2 pi / (high - low)``.
+    """
+    scale = 2.0 * np.pi / (high - low)
+    return (x - low) * scale, scale
+
+
+def wrap_to_period(x, low, high):
+    """Wrap ``x`` into ``[low, high)``.
+
+    Parameters
+    ----------
+    x : ndarray
+        Points.
+    low, high : float or ndarray
+        Ends of the period.
+
+    Returns
+    -------
+    wrapped : ndarray
+        ``low + (x - low) mod (high - low)``.
+    """
+    return low + np.mod(x - low, high - low)
+
+
+def fourier_column(frequency):
+    """Table column of a signed frequency: ``0 -> 0``, ``+k -> 2k - 1``, ``-k -> 2k``."""
+    frequency = np.asarray(frequency)
+    return np.where(frequency > 0, 2 * frequency - 1, -2 * frequency)
+
+
+def fourier_tables(theta, degree, n_derivatives=1):
+    """The real trigonometric basis and its derivatives at every angle.
+
+    ``cos(k theta)`` and ``sin(k theta)`` come from the angle-addition
+    recurrence, which needs one cosine and one sine per point whatever the
+    highest frequency.
+
+    Parameters
+    ----------
+    theta : ndarray of shape (n_samples, n_features)
+        Angles.
+    degree : int
+        Highest frequency ``K``.
+    n_derivatives : {0, 1, 2}, default=1
+        How many derivatives (with respect to ``theta``) to tabulate as well.
+
+    Returns
+    -------
+    tables : list of ndarray of shape (n_samples, n_features, 2 * degree + 1)
+        ``tables[r][..., j]`` is the ``r``-th derivative of basis function
+        ``j``: ``1, cos theta, sin theta, cos 2 theta, sin 2 theta, ...``.
+    """
+    value = np.empty((2 * degree + 1,) + theta.shape)
+    value[0] = 1.0
+    if degree >= 1:
+        c1, s1 = np.cos(theta), np.sin(theta)
+        value[1], value[2] = c1, s1
+        for k in range(1, degree):
+            c, s = value[2 * k - 1], value[2 * k]
+            value[2 * k + 1] = c * c1 - s * s1
+            value[2 * k + 2] = s * c1 + c * s1
+    tables = [value.transpose(1, 2, 0)]
+    k = np.repeat(np.arange(degree + 1), 2)[1:]  # frequency of each column
+    # d/dtheta maps cos(k.) to -k sin(k.) and sin(k.) to k cos(k.): swap each
+    # (cos, sin) pair of columns and scale.
+    swap = np.arange(2 * degree + 1)
+    swap[1::2] += 1
+    swap[2::2] -= 1
+    sign = np.where(np.arange(2 * degree + 1) % 2 == 1, -1.0, 1.0) * k
+    for _ in range(n_derivatives):
+        tables.append(tables[-1][..., swap] * sign)
+    return tables
+
+
+def fourier_moments(degree):
+    """Inner products of the basis and of its derivatives, mean over one period.
+
+    Parameters
+    ----------
+    degree : int
+        Highest frequency.
+
+    Returns
+    -------
+    values : ndarray of shape (2 * degree + 1, 2 * degree + 1)
+        Diagonal: ``1`` for the constant, ``1/2`` for every other column.
+    slopes : ndarray of shape (2 * degree + 1, 2 * degree + 1)
+        Diagonal: ``k**2 / 2`` for the columns of frequency ``k``.
+    """
+    k = np.repeat(np.arange(degree + 1), 2)[1:]
+    values = np.diag(np.where(k == 0, 1.0, 0.5))
+    slopes = np.diag(k**2 / 2.0)
+    return values, slopes

@@ -1,0 +1,106 @@
+"""Index sets: which tensor-product basis functions enter a model.
+
+A basis function is named by a multi-index ``alpha`` with one entry per state
+variable: a Legendre degree for an ordinary variable, a signed frequency for a
+periodic one (``+k``: ``cos(k theta)``, ``-k``: ``sin(k theta)``, see
+:mod:`.fourier`). Its degree is ``sum_i |alpha_i|``.
+
+:func:`index_set` *generates* the multi-indices that satisfy every constraint
+(total degree, degree in the momenta, separability, number of interacting
+variables) rather than filtering a total-degree list, so that spaces over many
+variables with few interactions (a 64-variable lattice) cost what they hold.
+"""
+
+from itertools import combinations
+
+import numpy as np
+
+
+def _positive_compositions(size, max_total):
+    """Rows of ``size`` positive integers with sum at most ``max_total``."""
+    rows = [()]
+    for _ in range(size):
+        rows = [r + (k,) for r in rows for k in range(1, max_total - sum(r) - (size - len(r)) + 2)]
+    return np.array(rows, dtype=np.intp).reshape(-1, size)
+
+
+def _supports(n_states, size, separable):
+    """Sets of ``size`` variables a basis function may depend on, as rows."""
+    if not separable:
+        groups = [range(n_states)]
+    else:
+        half = n_states // 2
+        groups = [range(half), range(half, n_states)]
+    rows = [c for group in groups for c in combinations(group, size)]
+    return np.array(rows, dtype=np.intp).reshape(-1, size)
+
+
+def index_set(
+    n_states,
+    degree,
+    *,
+    periodic=None,
+    momentum_degree=None,
+    separable=False,
+    max_interaction=None,
+    include_constant=False,
+):
+    """Multi-indices of a tensor-product space, in graded order.
+
+    Parameters
+    ----------
+    n_states : int
+        Number of variables ``m``. Where ``momentum_degree`` or ``separable``
+        are used, ``m = 2d`` is even and the first ``d`` variables are the
+        momenta.
+    degree : int
+        Largest total degree ``sum_i |alpha_i|``.
+    periodic : ndarray of shape (n_states,) of bool, default=None
+        Which variables are periodic; each non-zero frequency of one of them
+        gives two basis functions (cosine and sine).
+    momentum_degree : int, default=None
+        Largest total degree in the momenta; None: no limit beyond ``degree``.
+    separable : bool, default=False
+        No basis function depends on both a momentum and a position.
+    max_interaction : int, default=None
+        Most variables one basis function depends on; None: no limit.
+    include_constant : bool, default=False
+        Whether the zero multi-index comes first.
+
+    Returns
+    -------
+    powers : ndarray of shape (n_terms, n_states)
+        One multi-index per row, ordered by degree, then by decreasing
+        ``|alpha_1|``, ``|alpha_2|``, ..., cosines before sines. On a total-degree
+        set without periodic variables this is the order of the paper's basis.
+    """
+    periodic = np.zeros(n_states, dtype=bool) if periodic is None else np.asarray(periodic)
+    largest = n_states if max_interaction is None else min(max_interaction, n_states)
+    blocks = [np.zeros((1, n_states), dtype=np.intp)] if include_constant else []
+    for size in range(1, min(largest, degree) + 1):
+        supports = _supports(n_states, size, separable)
+        parts = _positive_compositions(size, degree)
+        if supports.size == 0 or parts.size == 0:
+            continue
+        rows = np.zeros((supports.shape[0] * parts.shape[0], n_states), dtype=np.intp)
+        which = np.repeat(supports, parts.shape[0], axis=0)
+        np.put_along_axis(rows, which, np.tile(parts, (supports.shape[0], 1)), axis=1)
+        if momentum_degree is not None:
+            rows = rows[rows[:, : n_states // 2].sum(axis=1) <= momentum_degree]
+        blocks.append(rows)
+    powers = np.concatenate(blocks) if blocks else np.zeros((0, n_states), dtype=np.intp)
+    # Each non-zero frequency of a periodic variable stands for a cosine and a sine.
+    for i in np.flatnonzero(periodic):
+        sines = powers[powers[:, i] != 0].copy()
+        sines[:, i] *= -1
+        powers = np.concatenate([powers, sines])
+    magnitude = np.abs(powers)
+    keys = tuple(powers[:, i] < 0 for i in reversed(range(n_states)))
+    keys += tuple(-magnitude[:, i] for i in reversed(range(n_states)))
+    order = np.lexsort(keys + (magnitude.sum(axis=1),))
+    return powers[order]
+
+
+def count_index_set(n_states, degree, **constraints):
+    """Number of multi-indices :func:`index_set` returns for these arguments."""
+    return index_set(n_states, degree, **constraints).shape[0]
