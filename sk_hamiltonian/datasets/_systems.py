@@ -27,6 +27,28 @@ def _read_only(values):
     return array
 
 
+def _check_periodic(periodic, domain):
+    n_features = domain.shape[0]
+    if periodic is None:
+        periodic = np.zeros(n_features, dtype=bool)
+    periodic = np.array(periodic)
+    if periodic.dtype != bool or periodic.shape != (n_features,):
+        raise ValueError(
+            f"periodic must be a boolean array of shape ({n_features},), one flag per "
+            f"state component (p before q), got dtype {periodic.dtype} and shape "
+            f"{periodic.shape}."
+        )
+    rows = domain[periodic]
+    if not np.all(np.isfinite(rows)) or np.any(rows[:, 1] <= rows[:, 0]):
+        raise ValueError(
+            "The domain row (low, high) of a periodic component is one full period "
+            "high - low, so it must be finite with low < high; got rows "
+            f"{rows.tolist()} for components {np.flatnonzero(periodic).tolist()}."
+        )
+    periodic.setflags(write=False)
+    return periodic
+
+
 class HamiltonianSystem:
     """A known Hamiltonian system ``du/dt = J^{-1} grad H(u)``.
 
@@ -46,6 +68,9 @@ class HamiltonianSystem:
         The paper's learning settings for this system.
     params : dict, default=None
         Physical parameters, shown in the representation.
+    periodic : array-like of bool of shape (2 * n_dof,), default=None
+        Which state components are angles whose ``domain`` row ``[low, high)``
+        is exactly one full period ``high - low``. None marks none.
 
     Attributes
     ----------
@@ -60,6 +85,12 @@ class HamiltonianSystem:
         (``J``) and ``noise``, plus ``t_final`` where the paper gives one.
     params : dict
         Physical parameters.
+    periodic : ndarray of bool of shape (2 * n_dof,)
+        Read-only; True for the angles. ``H`` is periodic in such a component
+        with period ``high - low`` of its ``domain`` row, and states that
+        differ by whole periods there are the same physical state. Trajectories
+        from :meth:`solve` and :func:`make_trajectories` are continuous: their
+        angles are not wrapped into ``[low, high)`` and may leave the domain.
 
     Examples
     --------
@@ -73,7 +104,7 @@ class HamiltonianSystem:
 
     def __init__(
         self, name, hamiltonian, gradient, domain, initial_state, paper_settings=None,
-        params=None,
+        params=None, *, periodic=None,
     ):
         domain = _read_only(domain)
         if domain.ndim != 2 or domain.shape[1] != 2 or domain.shape[0] % 2:
@@ -86,12 +117,14 @@ class HamiltonianSystem:
                 f"initial_state must have shape ({domain.shape[0]},) to match the "
                 f"domain, got {initial_state.shape}."
             )
+        periodic = _check_periodic(periodic, domain)
         self.name = name
         self.n_dof = domain.shape[0] // 2
         self.domain = domain
         self.initial_state = initial_state
         self.paper_settings = dict(paper_settings or {})
         self.params = dict(params or {})
+        self.periodic = periodic
         self._hamiltonian = hamiltonian
         self._gradient = gradient
 
@@ -172,7 +205,8 @@ class HamiltonianSystem:
         -------
         X : ndarray of shape (n_times, 2 * n_dof) or (n_states, n_times, 2 * n_dof)
             The solution at ``t``, with one leading axis per initial state if
-            ``x0`` is 2-D.
+            ``x0`` is 2-D. It is continuous in time: angles (see ``periodic``)
+            are not wrapped into the domain.
 
         Raises
         ------
