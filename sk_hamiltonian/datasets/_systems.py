@@ -82,7 +82,8 @@ class HamiltonianSystem:
         Read-only copy of ``initial_state``.
     paper_settings : dict
         Keys ``degree`` (``n``), ``n_trajectories`` (``M``), ``n_intervals``
-        (``J``) and ``noise``, plus ``t_final`` where the paper gives one.
+        (``J``) and ``noise``, plus ``t_final`` where the paper gives one;
+        empty for systems that are not in the paper.
     params : dict
         Physical parameters.
     periodic : ndarray of bool of shape (2 * n_dof,)
@@ -401,7 +402,9 @@ def cherry():
     )
 
 
-def double_pendulum(m1=1.0, m2=1.0, l1=1.0, l2=1.0, g=9.8):
+def double_pendulum(
+    m1=1.0, m2=1.0, l1=1.0, l2=1.0, g=9.8, *, full_circle=False, momentum_bound=1.0
+):
     """Example 5: double pendulum in angles and canonical momenta.
 
     With ``s = q1 - q2`` and ``D(s) = m1 + m2 sin(s)**2``::
@@ -417,14 +420,48 @@ def double_pendulum(m1=1.0, m2=1.0, l1=1.0, l2=1.0, g=9.8):
         Lengths of the inner and outer rod.
     g : float, default=9.8
         Gravitational constant.
+    full_circle : bool, default=False
+        Whether the angles range over full circles: the same ``H``, but angle
+        domains ``[-pi, pi)`` marked ``periodic`` and a large-swing ``u0*``.
+        This variant is not in the paper.
+    momentum_bound : float, default=1.0
+        Half-width of the momentum domain when ``full_circle=True``; ignored
+        otherwise.
 
     Returns
     -------
     system : HamiltonianSystem
-        Domain ``(-5, 5) x (-4, 4) x (-1, 1) x (-1, 1)``,
-        ``u0* = (0, 0, pi/6, pi/4)``, simulated up to ``t = 20`` in the paper.
+        With ``full_circle=False``, the paper's system: domain
+        ``(-5, 5) x (-4, 4) x (-1, 1) x (-1, 1)``, ``u0* = (0, 0, pi/6, pi/4)``,
+        simulated up to ``t = 20`` in the paper. With ``full_circle=True``,
+        ``"double_pendulum_full_circle"``: domain ``[-b, b]**2 x [-pi, pi)**2``
+        with ``b = momentum_bound``, ``periodic = (False, False, True, True)``,
+        ``u0* = (0, 0, 0, 2)`` and no ``paper_settings``.
+
+    Notes
+    -----
+    The full-circle ``u0*`` starts the outer rod at rest at 2 rad (115
+    degrees); with the default parameters the inner rod then swings to about
+    +-1.15 rad. Its motion is regular, not chaotic: from it, and from the
+    3 x 3 grid of starts at rest within 0.1 rad of it, a perturbation of
+    size ``1e-8`` grows to at most about ``1e-5`` by ``t = 200``, whereas
+    from ``(0, 0, 2, -1)`` it reaches order one by ``t = 20``. Along it the
+    momenta reach about ``|p1| = 6.7`` and ``|p2| = 4.5``, far outside the
+    default momentum domain; ``H`` is quadratic in ``p``, so a model that is
+    quadratic in ``p`` too can extrapolate there.
+
+    Examples
+    --------
+    >>> from sk_hamiltonian.datasets import double_pendulum
+    >>> system = double_pendulum(full_circle=True)
+    >>> system.name
+    'double_pendulum_full_circle'
+    >>> system.periodic
+    array([False, False,  True,  True])
     """
-    _check_positive(m1=m1, m2=m2, l1=l1, l2=l2, g=g)
+    _check_positive(m1=m1, m2=m2, l1=l1, l2=l2, g=g, momentum_bound=momentum_bound)
+    if not isinstance(full_circle, (bool, np.bool_)):
+        raise ValueError(f"full_circle must be True or False, got {full_circle!r}.")
     M = m1 + m2
 
     def kinetic_parts(X):
@@ -453,6 +490,15 @@ def double_pendulum(m1=1.0, m2=1.0, l1=1.0, l2=1.0, g=9.8):
         dH_dq2 = m2 * g * l2 * np.sin(q2) - dT_ds
         return np.stack([dH_dp1, dH_dp2, dH_dq1, dH_dq2], axis=-1)
 
+    params = dict(m1=m1, m2=m2, l1=l1, l2=l2, g=g)
+    if full_circle:
+        return HamiltonianSystem(
+            "double_pendulum_full_circle", hamiltonian, gradient,
+            domain=[[-momentum_bound, momentum_bound]] * 2 + [[-np.pi, np.pi]] * 2,
+            initial_state=[0.0, 0.0, 0.0, 2.0],
+            params=dict(params, momentum_bound=momentum_bound),
+            periodic=[False, False, True, True],
+        )
     return HamiltonianSystem(
         "double_pendulum", hamiltonian, gradient,
         domain=[[-5.0, 5.0], [-4.0, 4.0], [-1.0, 1.0], [-1.0, 1.0]],
@@ -460,7 +506,7 @@ def double_pendulum(m1=1.0, m2=1.0, l1=1.0, l2=1.0, g=9.8):
         paper_settings=dict(
             degree=15, n_trajectories=20000, n_intervals=2, noise=0.0, t_final=20.0
         ),
-        params=dict(m1=m1, m2=m2, l1=l1, l2=l2, g=g),
+        params=params,
     )
 
 
