@@ -647,9 +647,8 @@ def fput_chain(n_particles=8, *, alpha=0.0, beta=1.0, boundary="fixed"):
     --------
     >>> from sk_hamiltonian.datasets import fput_chain
     >>> system = fput_chain(4)
-    >>> system
-    HamiltonianSystem(name='fput_chain', n_dof=4, n_particles=4, alpha=0.0, \
-beta=1.0, boundary='fixed')
+    >>> system.n_dof, system.params["boundary"]
+    (4, 'fixed')
     >>> float(system.hamiltonian([0, 0, 0, 0, 1, 0, 0, 0]))  # V(1) + V(-1)
     1.5
     """
