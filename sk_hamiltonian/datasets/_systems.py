@@ -1,12 +1,15 @@
-"""The five Hamiltonian systems of the paper's numerical examples.
+"""The five Hamiltonian systems of the paper's numerical examples, and more.
 
 Every system is a :class:`HamiltonianSystem`: the true Hamiltonian ``H``, its
 closed-form gradient, the domain ``D`` the paper samples training states from,
 the paper's test initial state ``u0*``, and the paper's learning settings.
+Systems beyond the paper (:data:`SCENES`) have the same parts except the
+settings.
 States are ordered ``u = (p_1, ..., p_d, q_1, ..., q_d)`` and evolve by
 ``du/dt = J^{-1} grad H(u)`` with ``J = [[0, I], [-I, 0]]``.
 """
 
+import functools
 import math
 import numbers
 
@@ -25,6 +28,28 @@ def _read_only(values):
     array = np.array(values, dtype=float)
     array.setflags(write=False)
     return array
+
+
+def _check_periodic(periodic, domain):
+    n_features = domain.shape[0]
+    if periodic is None:
+        periodic = np.zeros(n_features, dtype=bool)
+    periodic = np.array(periodic)
+    if periodic.dtype != bool or periodic.shape != (n_features,):
+        raise ValueError(
+            f"periodic must be a boolean array of shape ({n_features},), one flag per "
+            f"state component (p before q), got dtype {periodic.dtype} and shape "
+            f"{periodic.shape}."
+        )
+    rows = domain[periodic]
+    if not np.all(np.isfinite(rows)) or np.any(rows[:, 1] <= rows[:, 0]):
+        raise ValueError(
+            "The domain row (low, high) of a periodic component is one full period "
+            "high - low, so it must be finite with low < high; got rows "
+            f"{rows.tolist()} for components {np.flatnonzero(periodic).tolist()}."
+        )
+    periodic.setflags(write=False)
+    return periodic
 
 
 class HamiltonianSystem:
@@ -46,6 +71,9 @@ class HamiltonianSystem:
         The paper's learning settings for this system.
     params : dict, default=None
         Physical parameters, shown in the representation.
+    periodic : array-like of bool of shape (2 * n_dof,), default=None
+        Which state components are angles whose ``domain`` row ``[low, high)``
+        is exactly one full period ``high - low``. None marks none.
 
     Attributes
     ----------
@@ -57,9 +85,16 @@ class HamiltonianSystem:
         Read-only copy of ``initial_state``.
     paper_settings : dict
         Keys ``degree`` (``n``), ``n_trajectories`` (``M``), ``n_intervals``
-        (``J``) and ``noise``, plus ``t_final`` where the paper gives one.
+        (``J``) and ``noise``, plus ``t_final`` where the paper gives one;
+        empty for systems that are not in the paper.
     params : dict
         Physical parameters.
+    periodic : ndarray of bool of shape (2 * n_dof,)
+        Read-only; True for the angles. ``H`` is periodic in such a component
+        with period ``high - low`` of its ``domain`` row, and states that
+        differ by whole periods there are the same physical state. Trajectories
+        from :meth:`solve` and :func:`make_trajectories` are continuous: their
+        angles are not wrapped into ``[low, high)`` and may leave the domain.
 
     Examples
     --------
@@ -73,7 +108,7 @@ class HamiltonianSystem:
 
     def __init__(
         self, name, hamiltonian, gradient, domain, initial_state, paper_settings=None,
-        params=None,
+        params=None, *, periodic=None,
     ):
         domain = _read_only(domain)
         if domain.ndim != 2 or domain.shape[1] != 2 or domain.shape[0] % 2:
@@ -86,12 +121,14 @@ class HamiltonianSystem:
                 f"initial_state must have shape ({domain.shape[0]},) to match the "
                 f"domain, got {initial_state.shape}."
             )
+        periodic = _check_periodic(periodic, domain)
         self.name = name
         self.n_dof = domain.shape[0] // 2
         self.domain = domain
         self.initial_state = initial_state
         self.paper_settings = dict(paper_settings or {})
         self.params = dict(params or {})
+        self.periodic = periodic
         self._hamiltonian = hamiltonian
         self._gradient = gradient
 
@@ -172,7 +209,8 @@ class HamiltonianSystem:
         -------
         X : ndarray of shape (n_times, 2 * n_dof) or (n_states, n_times, 2 * n_dof)
             The solution at ``t``, with one leading axis per initial state if
-            ``x0`` is 2-D.
+            ``x0`` is 2-D. It is continuous in time: angles (see ``periodic``)
+            are not wrapped into the domain.
 
         Raises
         ------
@@ -367,7 +405,9 @@ def cherry():
     )
 
 
-def double_pendulum(m1=1.0, m2=1.0, l1=1.0, l2=1.0, g=9.8):
+def double_pendulum(
+    m1=1.0, m2=1.0, l1=1.0, l2=1.0, g=9.8, *, full_circle=False, momentum_bound=1.0
+):
     """Example 5: double pendulum in angles and canonical momenta.
 
     With ``s = q1 - q2`` and ``D(s) = m1 + m2 sin(s)**2``::
@@ -383,14 +423,48 @@ def double_pendulum(m1=1.0, m2=1.0, l1=1.0, l2=1.0, g=9.8):
         Lengths of the inner and outer rod.
     g : float, default=9.8
         Gravitational constant.
+    full_circle : bool, default=False
+        Whether the angles range over full circles: the same ``H``, but angle
+        domains ``[-pi, pi)`` marked ``periodic`` and a large-swing ``u0*``.
+        This variant is not in the paper.
+    momentum_bound : float, default=1.0
+        Half-width of the momentum domain when ``full_circle=True``; ignored
+        otherwise.
 
     Returns
     -------
     system : HamiltonianSystem
-        Domain ``(-5, 5) x (-4, 4) x (-1, 1) x (-1, 1)``,
-        ``u0* = (0, 0, pi/6, pi/4)``, simulated up to ``t = 20`` in the paper.
+        With ``full_circle=False``, the paper's system: domain
+        ``(-5, 5) x (-4, 4) x (-1, 1) x (-1, 1)``, ``u0* = (0, 0, pi/6, pi/4)``,
+        simulated up to ``t = 20`` in the paper. With ``full_circle=True``,
+        ``"double_pendulum_full_circle"``: domain ``[-b, b]**2 x [-pi, pi)**2``
+        with ``b = momentum_bound``, ``periodic = (False, False, True, True)``,
+        ``u0* = (0, 0, 0, 2)`` and no ``paper_settings``.
+
+    Notes
+    -----
+    The full-circle ``u0*`` starts the outer rod at rest at 2 rad (115
+    degrees); with the default parameters the inner rod then swings to about
+    +-1.15 rad. Its motion is regular, not chaotic: from it, and from the
+    3 x 3 grid of starts at rest within 0.1 rad of it, a perturbation of
+    size ``1e-8`` grows to at most about ``1e-5`` by ``t = 200``, whereas
+    from ``(0, 0, 2, -1)`` it reaches order one by ``t = 20``. Along it the
+    momenta reach about ``|p1| = 6.7`` and ``|p2| = 4.5``, far outside the
+    default momentum domain; ``H`` is quadratic in ``p``, so a model that is
+    quadratic in ``p`` too can extrapolate there.
+
+    Examples
+    --------
+    >>> from sk_hamiltonian.datasets import double_pendulum
+    >>> system = double_pendulum(full_circle=True)
+    >>> system.name
+    'double_pendulum_full_circle'
+    >>> system.periodic
+    array([False, False,  True,  True])
     """
-    _check_positive(m1=m1, m2=m2, l1=l1, l2=l2, g=g)
+    _check_positive(m1=m1, m2=m2, l1=l1, l2=l2, g=g, momentum_bound=momentum_bound)
+    if not isinstance(full_circle, (bool, np.bool_)):
+        raise ValueError(f"full_circle must be True or False, got {full_circle!r}.")
     M = m1 + m2
 
     def kinetic_parts(X):
@@ -419,6 +493,15 @@ def double_pendulum(m1=1.0, m2=1.0, l1=1.0, l2=1.0, g=9.8):
         dH_dq2 = m2 * g * l2 * np.sin(q2) - dT_ds
         return np.stack([dH_dp1, dH_dp2, dH_dq1, dH_dq2], axis=-1)
 
+    params = dict(m1=m1, m2=m2, l1=l1, l2=l2, g=g)
+    if full_circle:
+        return HamiltonianSystem(
+            "double_pendulum_full_circle", hamiltonian, gradient,
+            domain=[[-momentum_bound, momentum_bound]] * 2 + [[-np.pi, np.pi]] * 2,
+            initial_state=[0.0, 0.0, 0.0, 2.0],
+            params=dict(params, momentum_bound=momentum_bound),
+            periodic=[False, False, True, True],
+        )
     return HamiltonianSystem(
         "double_pendulum", hamiltonian, gradient,
         domain=[[-5.0, 5.0], [-4.0, 4.0], [-1.0, 1.0], [-1.0, 1.0]],
@@ -426,7 +509,234 @@ def double_pendulum(m1=1.0, m2=1.0, l1=1.0, l2=1.0, g=9.8):
         paper_settings=dict(
             degree=15, n_trajectories=20000, n_intervals=2, noise=0.0, t_final=20.0
         ),
-        params=dict(m1=m1, m2=m2, l1=l1, l2=l2, g=g),
+        params=params,
+    )
+
+
+_BOUNDARIES = ("fixed", "periodic")
+
+
+def _check_chain(n_particles, boundary):
+    if (
+        isinstance(n_particles, bool)
+        or not isinstance(n_particles, numbers.Integral)
+        or n_particles < 2
+    ):
+        raise ValueError(f"n_particles must be an integer >= 2, got {n_particles!r}.")
+    if not isinstance(boundary, str) or boundary not in _BOUNDARIES:
+        raise ValueError(
+            "boundary must be 'fixed' (q_0 = q_{N+1} = 0) or 'periodic' "
+            f"(q_{{N+1}} = q_1), got {boundary!r}."
+        )
+    return int(n_particles)
+
+
+def _bond_stretches(q, boundary):
+    """``r_i = q_{i+1} - q_i``: N + 1 bonds with fixed ends, N on a ring."""
+    # Filled in place: padding q or np.roll would add a temporary the size of
+    # the batch, which costs about as much as the arithmetic, on every
+    # right-hand-side evaluation of the reference solver.
+    n = q.shape[-1]
+    if boundary == "fixed":
+        r = np.empty(q.shape[:-1] + (n + 1,))
+        np.subtract(q[..., 1:], q[..., :-1], out=r[..., 1:n])
+        r[..., 0] = q[..., 0]
+        r[..., n] = -q[..., -1]
+    else:
+        r = np.empty(q.shape)
+        np.subtract(q[..., 1:], q[..., :-1], out=r[..., :-1])
+        r[..., -1] = q[..., 0] - q[..., -1]
+    return r
+
+
+def _bond_gradient(force, boundary, out):
+    """``dH/dq_i = V'(r_{i-1}) - V'(r_i)``: particle i ends one bond, starts the next."""
+    if boundary == "fixed":
+        np.subtract(force[..., :-1], force[..., 1:], out=out)
+    else:
+        np.subtract(force[..., :-1], force[..., 1:], out=out[..., 1:])
+        out[..., 0] = force[..., -1] - force[..., 0]
+    return out
+
+
+# Amplitude of the chains' u0*, the longest standing wave at rest. Its
+# trajectory then stays inside the [-1, 1] box (checked for 2 to 8, 32 and 64
+# particles); at 0.5 the momenta of a ring of two particles exceed 1.
+_CHAIN_AMPLITUDE = 0.4
+
+
+def _chain(name, potential, force, params):
+    """A chain of unit masses with nearest-neighbour bond potential ``V``."""
+    n_particles, boundary = params["n_particles"], params["boundary"]
+
+    def hamiltonian(X):
+        p, q = _split(X)
+        bonds = potential(_bond_stretches(q, boundary))
+        return 0.5 * np.sum(p**2, axis=-1) + np.sum(bonds, axis=-1)
+
+    def gradient(X):
+        p, q = _split(X)
+        grad = np.empty(X.shape)
+        grad[..., :n_particles] = p
+        _bond_gradient(force(_bond_stretches(q, boundary)), boundary, grad[..., n_particles:])
+        return grad
+
+    i = np.arange(1, n_particles + 1)
+    if boundary == "fixed":
+        q0 = _CHAIN_AMPLITUDE * np.sin(np.pi * i / (n_particles + 1))
+    else:
+        # cos rather than sin: sin(2 pi i / 2) vanishes, leaving a ring of two at rest.
+        q0 = _CHAIN_AMPLITUDE * np.cos(2 * np.pi * i / n_particles)
+    return HamiltonianSystem(
+        name, hamiltonian, gradient,
+        domain=[[-1.0, 1.0]] * (2 * n_particles),
+        initial_state=np.concatenate([np.zeros(n_particles), q0]),
+        params=params,
+    )
+
+
+def fput_chain(n_particles=8, *, alpha=0.0, beta=1.0, boundary="fixed"):
+    """Fermi-Pasta-Ulam-Tsingou chain of unit masses.
+
+    ``H = sum_i p_i**2 / 2 + sum_bonds V(r)`` over the bond stretches
+    ``r = q_{i+1} - q_i``, with ``V(r) = r**2 / 2 + alpha r**3 / 3 + beta r**4 / 4``.
+    This system is not in the paper.
+
+    Parameters
+    ----------
+    n_particles : int, default=8
+        Number ``N`` of moving particles, at least 2; ``n_dof = N``.
+    alpha : float, default=0.0
+        Coefficient of the cubic term (the alpha-FPUT chain).
+    beta : float, default=1.0
+        Coefficient of the quartic term (the beta-FPUT chain), at least 0.
+    boundary : {"fixed", "periodic"}, default="fixed"
+        ``"fixed"``: walls at both ends, ``q_0 = q_{N+1} = 0``, so ``N + 1``
+        bonds. ``"periodic"``: a ring, ``q_{N+1} = q_1``, so ``N`` bonds.
+
+    Returns
+    -------
+    system : HamiltonianSystem
+        Domain ``[-1, 1]**(2N)``; ``u0*`` at rest in the longest standing
+        wave of amplitude 0.4, ``q_i = 0.4 sin(pi i / (N + 1))`` with fixed
+        ends and ``q_i = 0.4 cos(2 pi i / N)`` on a ring. No
+        ``paper_settings``.
+
+    Notes
+    -----
+    The domain: with displacements and momenta of order one, uniformly drawn
+    states have bond stretches up to 2, where for ``beta = 1`` the quartic
+    term outweighs the quadratic one, so even short trajectories show the
+    nonlinearity; the fastest oscillations have periods of order one (``pi``
+    for the linear chain, shorter where the quartic term stiffens the bonds).
+    Drawn states are rough (neighbouring displacements are independent),
+    unlike the smooth ``u0*``, whose trajectory stays inside the box. Its
+    bond stretches are at most about ``2.5 / N``, so for long chains it probes
+    the nearly linear regime.
+
+    On a ring ``H`` is unchanged by shifting every ``q_i`` by one constant,
+    and the total momentum is conserved: a drawn state with nonzero total
+    momentum drifts and, over long times, leaves the box.
+
+    With ``beta = 0`` and ``alpha != 0`` the potential is unbounded below: a
+    bond stretched past ``r = -1 / alpha`` runs away and the solution blows
+    up in finite time (:meth:`HamiltonianSystem.solve` raises
+    ``SimulationError``). With ``beta > 0`` every solution is bounded.
+
+    Examples
+    --------
+    >>> from sk_hamiltonian.datasets import fput_chain
+    >>> system = fput_chain(4)
+    >>> system.n_dof, system.params["boundary"]
+    (4, 'fixed')
+    >>> float(system.hamiltonian([0, 0, 0, 0, 1, 0, 0, 0]))  # V(1) + V(-1)
+    1.5
+    """
+    n_particles = _check_chain(n_particles, boundary)
+    for name, value in dict(alpha=alpha, beta=beta).items():
+        if not (isinstance(value, numbers.Real) and math.isfinite(value)):
+            raise ValueError(f"{name} must be a finite number, got {value!r}.")
+    if beta < 0:
+        raise ValueError(
+            f"beta must be >= 0, got {beta!r}; with beta < 0 the potential is "
+            "unbounded below and every large enough stretch blows up."
+        )
+
+    def potential(r):
+        r2 = r * r
+        return r2 * (0.5 + r * (alpha / 3) + r2 * (beta / 4))
+
+    def force(r):
+        # In place: r is a scratch array, and each temporary of a large batch
+        # costs about as much as the arithmetic.
+        f = np.multiply(r, beta)
+        f += alpha
+        f *= r
+        f *= r
+        f += r
+        return f
+
+    return _chain(
+        "fput_chain", potential, force,
+        dict(n_particles=n_particles, alpha=alpha, beta=beta, boundary=boundary),
+    )
+
+
+def toda_lattice(n_particles=8, *, boundary="fixed"):
+    """Toda lattice of unit masses.
+
+    ``H = sum_i p_i**2 / 2 + sum_bonds V(r)`` over the bond stretches
+    ``r = q_{i+1} - q_i``, with ``V(r) = exp(-r) + r - 1``: minimal at
+    ``r = 0``, ``r**2 / 2 - r**3 / 6 + ...`` near it, exponentially stiff in
+    compression and linear in extension. This system is not in the paper.
+
+    Parameters
+    ----------
+    n_particles : int, default=8
+        Number ``N`` of moving particles, at least 2; ``n_dof = N``.
+    boundary : {"fixed", "periodic"}, default="fixed"
+        ``"fixed"``: walls at both ends, ``q_0 = q_{N+1} = 0``, so ``N + 1``
+        bonds. ``"periodic"``: a ring, ``q_{N+1} = q_1``, so ``N`` bonds.
+
+    Returns
+    -------
+    system : HamiltonianSystem
+        Domain ``[-1, 1]**(2N)`` (compressions up to ``r = -2`` cost
+        ``V = e**2 - 3``, about 4.4); ``u0*`` at rest in the longest standing
+        wave of amplitude 0.4, as for :func:`fput_chain`. No
+        ``paper_settings``.
+
+    Notes
+    -----
+    The stretches add up to zero with either boundary (they telescope to
+    ``q_{N+1} - q_0``), so the linear part of ``V`` only shifts ``H`` by a
+    constant and the motion is that of the classical Toda lattice with
+    ``V(r) = exp(-r)``. It is integrable: the ring is Toda's periodic
+    lattice, and a chain with fixed ends is the odd solution
+    ``q_{-i} = -q_i`` of a ring of ``2N + 2`` particles. On a ring, as for
+    :func:`fput_chain`, a state with nonzero total momentum drifts.
+
+    Examples
+    --------
+    >>> from sk_hamiltonian.datasets import toda_lattice
+    >>> system = toda_lattice(3, boundary="periodic")
+    >>> system.initial_state
+    array([ 0. ,  0. ,  0. , -0.2, -0.2,  0.4])
+    >>> float(system.hamiltonian([0, 0, 0, 1, 1, 1]))  # a rigid shift
+    0.0
+    """
+    n_particles = _check_chain(n_particles, boundary)
+
+    def potential(r):
+        return np.expm1(-r) + r
+
+    def force(r):
+        f = np.negative(r)
+        np.expm1(f, out=f)
+        return np.negative(f, out=f)
+
+    return _chain(
+        "toda_lattice", potential, force, dict(n_particles=n_particles, boundary=boundary)
     )
 
 
@@ -440,17 +750,29 @@ SYSTEMS = {
 }
 
 
+#: Systems beyond the paper's, by name; values are the factories. Each builds
+#: a system of that name.
+SCENES = {
+    "double_pendulum_full_circle": functools.partial(double_pendulum, full_circle=True),
+    "fput_chain": fput_chain,
+    "toda_lattice": toda_lattice,
+}
+
+
 def load_system(name, **params):
-    """Build one of the paper's systems by name.
+    """Build a system by name.
 
     Parameters
     ----------
     name : str
-        A key of :data:`SYSTEMS`: ``"single_pendulum"``, ``"exponential"``,
-        ``"henon_heiles"``, ``"cherry"`` or ``"double_pendulum"``.
+        A key of :data:`SYSTEMS`, the paper's systems: ``"single_pendulum"``,
+        ``"exponential"``, ``"henon_heiles"``, ``"cherry"`` or
+        ``"double_pendulum"``; or of :data:`SCENES`, systems beyond the paper:
+        ``"double_pendulum_full_circle"``, ``"fput_chain"`` or
+        ``"toda_lattice"``.
     **params
-        Physical parameters passed to the factory, e.g. ``length`` for the
-        single pendulum.
+        Parameters passed to the factory, e.g. ``length`` for the single
+        pendulum or ``n_particles`` for the chains.
 
     Returns
     -------
@@ -462,9 +784,13 @@ def load_system(name, **params):
     >>> from sk_hamiltonian.datasets import load_system
     >>> load_system("single_pendulum", length=2.0)
     HamiltonianSystem(name='single_pendulum', n_dof=1, length=2.0, g=9.8)
+    >>> load_system("toda_lattice", n_particles=16).n_dof
+    16
     """
-    if not isinstance(name, str) or name not in SYSTEMS:
+    factories = {**SYSTEMS, **SCENES}
+    if not isinstance(name, str) or name not in factories:
         raise ValueError(
-            f"Unknown system {name!r}; valid names are {sorted(SYSTEMS)}."
+            f"Unknown system {name!r}; valid names are {sorted(SYSTEMS)} (the "
+            f"paper's) and {sorted(SCENES)}."
         )
-    return SYSTEMS[name](**params)
+    return factories[name](**params)

@@ -74,7 +74,8 @@ def make_trajectories(
     -------
     X : ndarray of shape (n_trajectories, n_intervals + 1, 2 * n_dof)
         The (noisy) trajectories; ``X[i, k]`` is the state of trajectory ``i``
-        at time ``k * dt``.
+        at time ``k * dt``. Angles (``system.periodic``) are not wrapped: each
+        trajectory is continuous and may leave ``domain``.
     X_clean : ndarray of shape (n_trajectories, n_intervals + 1, 2 * n_dof)
         The noise-free trajectories. Only returned if ``return_clean=True``.
 
