@@ -32,7 +32,11 @@ templates_path = ["_templates"]
 default_role = "literal"
 
 autosummary_generate = True
-autodoc_default_options = {"members": True, "inherited-members": True}
+# No default members: the class template (_templates/class.rst) lists the
+# members of the generated class pages itself, and a default "members" would
+# also expand the ``automodule:: ... :no-members:`` blocks of api.rst, printing
+# every function of datasets, model_selection and plotting a second time.
+autodoc_default_options = {}
 numpydoc_show_class_members = False
 numpydoc_class_members_toctree = False
 
