@@ -63,7 +63,61 @@ if find_spec("pydata_sphinx_theme") is not None:
     html_theme_options = {
         "navigation_with_keys": False,
         "show_toc_level": 2,
+        # The navigation bar starts next to the title rather than above the
+        # article, and search is an icon (the search box took a third row), so
+        # that the six long section titles fit in two rows at 1400 px or less.
+        "navbar_align": "left",
+        "header_links_before_dropdown": 6,
+        "navbar_persistent": [],
+        "navbar_end": ["search-button", "theme-switcher", "navbar-icon-links"],
     }
 else:  # the docs extra installs it; the fallback keeps a bare Sphinx working.
     html_theme = "alabaster"
-html_static_path = []
+# Only the site's own CSS and JavaScript are copied to the built _static/; the
+# rest of docs/_static (benchmark figures, intersphinx inventories) is read at
+# build time.
+html_static_path = ["_static/site"]
+html_css_files = ["custom.css"]  # full-width article, scrolling tables
+html_js_files = ["figure-zoom.js"]  # click-to-enlarge figures
+# Method entries of the page TOC read "fit()", not "HamiltonianRegressor.fit()".
+toc_object_entries_show_parents = "hide"
+
+_SECTION_NAVIGATION = {"sidebar-collapse.html", "sidebar-nav-bs.html"}
+
+
+def _hide_empty_primary_sidebar(app, pagename, templatename, context, doctree):
+    """Drop the primary sidebar on pages whose section has no sub-pages.
+
+    The pydata theme shows its "Section Navigation" sidebar on every page below
+    the root whose section contains a toctree, hidden ones included, and leaves
+    it empty on single-page sections (user guide, results, ...), squeezing the
+    article. Here a page keeps it only if its top-level section (the ancestor
+    just below the root document) includes other documents, as the API
+    reference and the gallery do.
+    """
+    if "sidebars" not in context or pagename == app.config.root_doc:
+        return
+    includes = app.env.toctree_includes
+    parents = {}
+    for parent, children in includes.items():
+        for child in children:
+            parents.setdefault(child, parent)
+    if pagename not in parents:
+        return  # genindex, search, orphans: the theme already drops it
+    top, seen = pagename, {pagename}
+    while parents.get(top, app.config.root_doc) != app.config.root_doc:
+        top = parents[top]
+        if top in seen:  # a toctree cycle; leave the page alone
+            return
+        seen.add(top)
+    if not includes.get(top):
+        # Names come from theme.conf with or without their ".html".
+        context["sidebars"] = [
+            name
+            for name in context["sidebars"]
+            if name not in _SECTION_NAVIGATION and f"{name}.html" not in _SECTION_NAVIGATION
+        ]
+
+
+def setup(app):
+    app.connect("html-page-context", _hide_empty_primary_sidebar)
