@@ -5,6 +5,7 @@ Build (quick mode, as in CI)::
     SK_HAMILTONIAN_QUICK=1 python -m sphinx -W --keep-going -b html docs docs/_build/html
 """
 
+from importlib import import_module
 from importlib.util import find_spec
 from pathlib import Path
 
@@ -20,6 +21,7 @@ release = version = sk_hamiltonian.__version__
 extensions = [
     "sphinx.ext.autodoc",
     "sphinx.ext.autosummary",
+    "sphinx.ext.intersphinx",
     "sphinx.ext.mathjax",
     "numpydoc",
     "sphinx_gallery.gen_gallery",
@@ -39,6 +41,43 @@ autosummary_generate = True
 autodoc_default_options = {}
 numpydoc_show_class_members = False
 numpydoc_class_members_toctree = False
+
+# Types in numpydoc "Parameters"/"Returns" sections link to their documentation
+# ("ndarray of shape (n, m)" links "ndarray"). Only the words below (and
+# numpydoc's defaults: int, float, str, dict, None, array-like, ndarray, ...)
+# are links; every other word of a type ("of", "shape", "n_states", ...) stays
+# plain text, so new docstrings cannot break the nitpicky build.
+numpydoc_xref_param_type = True
+numpydoc_xref_ignore = "all"
+numpydoc_xref_aliases = {
+    "Axes": "matplotlib.axes.Axes",
+    "Figure": "matplotlib.figure.Figure",
+    "Pipeline": "sklearn.pipeline.Pipeline",
+    "estimator": ":term:`estimator <sklearn:estimator>`",
+    "Generator": "numpy.random.Generator",
+}
+# The package's public names link to their API pages.
+for _module_name in ("sk_hamiltonian", "sk_hamiltonian.datasets",
+                     "sk_hamiltonian.model_selection", "sk_hamiltonian.plotting"):
+    _module = import_module(_module_name)
+    for _name in getattr(_module, "__all__", ()):
+        if isinstance(getattr(_module, _name), type):  # classes only
+            numpydoc_xref_aliases[_name] = f"{_module_name}.{_name}"
+
+# Links to other projects' documentation. The build has no network: each
+# inventory is read from docs/_static/inventories/, written by
+# make_inventories.py there with the objects these docs reference; the URLs
+# are used for the links only. Run `python -m sphinx -n ...` to see a
+# reference that is missing ("reference target not found"), add it to
+# make_inventories.py and rerun it.
+_INVENTORIES = "_static/inventories"
+intersphinx_mapping = {
+    "python": ("https://docs.python.org/3/", f"{_INVENTORIES}/python.inv"),
+    "numpy": ("https://numpy.org/doc/stable/", f"{_INVENTORIES}/numpy.inv"),
+    "scipy": ("https://docs.scipy.org/doc/scipy/", f"{_INVENTORIES}/scipy.inv"),
+    "sklearn": ("https://scikit-learn.org/stable/", f"{_INVENTORIES}/sklearn.inv"),
+    "matplotlib": ("https://matplotlib.org/stable/", f"{_INVENTORIES}/matplotlib.inv"),
+}
 
 sphinx_gallery_conf = {
     "examples_dirs": str(DOCS.parent / "examples"),
