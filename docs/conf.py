@@ -26,6 +26,13 @@ extensions = [
     "numpydoc",
     "sphinx_gallery.gen_gallery",
 ]
+# Optional extras of the docs extra; a bare Sphinx still builds without them.
+if find_spec("sphinx-mathjax-offline") is not None:
+    # Copies MathJax into the built site (_static/mathjax/), so that equations
+    # render without network; without it they load MathJax from a CDN.
+    extensions.append("sphinx-mathjax-offline")
+if find_spec("sphinx_copybutton") is not None:
+    extensions.append("sphinx_copybutton")  # a "copy" button on code blocks
 
 # sphinx-gallery writes a summary of all galleries' run times at the top level;
 # the gallery's own one is linked from the gallery.
