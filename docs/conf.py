@@ -2,7 +2,7 @@
 
 Build (quick mode, as in CI)::
 
-    SK_HAMILTONIAN_QUICK=1 python -m sphinx -W --keep-going -b html docs docs/_build/html
+    SK_HAMILTONIAN_QUICK=1 python -m sphinx -n -W --keep-going -b html docs docs/_build/html
 """
 
 from importlib import import_module
