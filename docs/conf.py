@@ -57,6 +57,8 @@ numpydoc_class_members_toctree = False
 numpydoc_xref_param_type = True
 numpydoc_xref_ignore = "all"
 numpydoc_xref_aliases = {
+    # numpydoc's default shows NumPy's spelling "array_like"; keep ours.
+    "array-like": ":term:`array-like <numpy:array_like>`",
     "Axes": "matplotlib.axes.Axes",
     "Figure": "matplotlib.figure.Figure",
     "Pipeline": "sklearn.pipeline.Pipeline",
