@@ -4,7 +4,7 @@ A pipeline ``make_pipeline(DerivativeTransformer(dt=dt), HamiltonianRegressor())
 can be searched directly with :class:`~sklearn.model_selection.GridSearchCV`
 on the trajectory array: one sample is one trajectory, so the folds hold out
 whole trajectories, and the default score already compares rollouts with the
-held-out *observations* (see :meth:`HamiltonianRegressor.score`).
+held-out *observations* (see :meth:`~sk_hamiltonian.HamiltonianRegressor.score`).
 
 This module adds :func:`multistep_scorer`, a held-out score from short
 predictions started at every observation, and :func:`one_standard_error_rule`,
@@ -52,8 +52,8 @@ def count_terms(estimator, n_states, params=None):
     -------
     n_terms : int
         The ``n_terms_`` the estimator would have after fitting:
-        ``C(n + 2d, 2d) - 1`` for :class:`HamiltonianRegressor` and
-        ``2d * C(n + 2d, 2d)`` for :class:`VectorFieldRegressor`.
+        ``C(n + 2d, 2d) - 1`` for :class:`~sk_hamiltonian.HamiltonianRegressor` and
+        ``2d * C(n + 2d, 2d)`` for :class:`~sk_hamiltonian.VectorFieldRegressor`.
 
     See Also
     --------
@@ -212,13 +212,14 @@ def multistep_scorer(n_steps=5, *, stride=1):
         fitted pipeline ending in a regressor and ``X`` held-out raw
         trajectories (or ``estimator`` a regressor and ``X`` the derivative
         layout). The score is ``1 - mean_k min(1, e_k)``, with ``e_k`` the
-        relative error of trajectory ``k`` (see :func:`multistep_errors`);
-        at most 1, and 0 for a model whose predictions fail.
+        relative error of trajectory ``k`` (see
+        ``sk_hamiltonian._scoring.multistep_errors``); at most 1, and 0 for a
+        model whose predictions fail.
 
     See Also
     --------
     one_standard_error_rule : Prefer smaller models among near-best scores.
-    HamiltonianRegressor.score : The default rollout score.
+    sk_hamiltonian.HamiltonianRegressor.score : The default rollout score.
 
     Examples
     --------
