@@ -350,10 +350,13 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
                                self._dynamics())
 
     def _default_method(self):
-        return "rk4"
+        # A fit on steps learns the averaged-vector-field map at the data step.
+        return "avf" if self.fit_on == "steps" else "rk4"
 
     def _default_step(self, method):
         """The step ``simulate`` takes when ``max_step`` is None."""
+        if self.fit_on == "steps" and method == "avf" and np.isfinite(self.dt_):
+            return self.dt_
         return STEP_FRACTION[method] * self.time_scale_
 
     def simulate(self, x0, t, *, method=None, max_step=None):

@@ -296,13 +296,6 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
     def _damping(self):
         return self.damping_ if self.damping_.any() else None
 
-    def _default_method(self):
-        return "avf" if self.fit_on == "steps" else "rk4"
-
-    def _default_step(self, method):
-        if self.fit_on == "steps" and method == "avf" and np.isfinite(self.dt_):
-            return self.dt_
-        return super()._default_step(method)
 
     def _dynamics(self):
         split = {}
@@ -313,7 +306,7 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
                 potential_gradient=lambda q: potential.gradient_dot(q, c_q),
             )
         return Dynamics(
-            self._vector_field, gradient=self._gradient, hessian=self._hessian,
+            self._vector_field, jacobian=self._jacobian,
             damping=self._damping(), n_nodes=quadrature_nodes(self._space),
             wrap=self._space.wrap if self.periodic_.any() else None, **split,
         )
@@ -354,4 +347,3 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
         flat, lead = self._check_states(X)
         self._warn_outside(flat)
         return self._gradient(flat).reshape(lead + (self.n_features_in_,))
-

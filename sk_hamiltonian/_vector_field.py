@@ -136,5 +136,7 @@ class VectorFieldRegressor(BaseTrajectoryRegressor):
                 f"{1 if self.coef_.ndim == 1 else self.coef_.shape[1]} output(s)."
             )
         return Dynamics(
-            self._vector_field, wrap=self._space.wrap if self.periodic_.any() else None
+            self._vector_field, jacobian=self._jacobian,
+            n_nodes=quadrature_nodes(self._space, of_gradient=False),
+            wrap=self._space.wrap if self.periodic_.any() else None,
         )

@@ -175,9 +175,19 @@ def test_vector_field_regressor_is_not_hamiltonian_but_fits_linear_field():
     vf = VectorFieldRegressor(degree=1).fit(X, y)
     assert np.allclose(vf.predict(X), y)
     assert vf.coef_.shape == (3, 2) and vf.n_terms_ == 6
-    with pytest.raises(ValueError, match="needs a Hamiltonian"):
-        vf.simulate(X[0], [0.0, 1.0], method="avf")
+    # No Hamiltonian, so no separable split for the explicit symplectic methods.
+    with pytest.raises(ValueError, match="not separable.*'avf'.*'rk4'"):
+        vf.simulate(X[0], [0.0, 1.0], method="leapfrog")
     assert not hasattr(vf, "hamiltonian")
+    # The averaged-vector-field map exists for any field; for this linear one it
+    # is the implicit midpoint rule, whose step agrees with RK4 to O(h^3).
+    x0 = np.array([0.3, -0.2])
+    avf = vf.simulate(x0, [0.0, 0.1], method="avf", max_step=np.inf)[1]
+    rk4 = vf.simulate(x0, [0.0, 0.1], method="rk4", max_step=1e-3)[1]
+    assert np.abs(avf - rk4).max() < 1e-3
+    A = np.array([[0.0, -2.0], [1.0, 1.0]])
+    midpoint = np.linalg.solve(np.eye(2) - 0.05 * A, (np.eye(2) + 0.05 * A) @ x0 + 0.1 * np.array([0.5, 0.0]))
+    assert np.allclose(avf, midpoint, atol=1e-13)
 
 
 def test_fit_on_layout_equals_fit_on_stacked_arrays():

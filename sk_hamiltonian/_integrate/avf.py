@@ -21,23 +21,25 @@ def apply_structure(g, damping=None):
 class AveragedVectorField(FixedStepIntegrator):
     """Averaged-vector-field (AVF) method, a discrete-gradient integrator.
 
-    One step solves ``y1 = y0 + h S int_0^1 grad H(y0 + xi (y1 - y0)) dxi``
-    with ``S = J^{-1}`` for a conservative model and ``S = J^{-1} - Gamma``
-    with linear damping. Writing ``g`` for the averaged gradient, ``H(y1) -
-    H(y0) = g . (y1 - y0) = h g . S g``: zero when ``S`` is skew (the energy
-    is conserved exactly) and ``-h sum_i gamma_i g_{p_i}**2`` with damping,
-    the discrete form of ``dH/dt = -sum_i gamma_i (dq_i/dt)**2``, since
-    ``g_p = (q1 - q0) / h``. Both hold to round-off when the average is
-    exact: for a polynomial ``H`` of degree ``n`` the integrand has degree
-    ``n - 1`` in ``xi`` and ``ceil(n / 2)`` Gauss-Legendre nodes suffice (the
-    model says how many it needs, more for trigonometric terms). The
-    implicit equation is solved by simplified Newton iterations with the
-    matrix ``I - (h / 2) S hess H(y0)`` until the update is at round-off.
+    One step solves ``y1 = y0 + h int_0^1 f(y0 + xi (y1 - y0)) dxi``. For a
+    Hamiltonian model ``f = S grad H`` with ``S = J^{-1}`` (conservative) or
+    ``S = J^{-1} - Gamma`` (linear damping), and writing ``g`` for the
+    averaged gradient, ``H(y1) - H(y0) = g . (y1 - y0) = h g . S g``: zero
+    when ``S`` is skew (the energy is conserved exactly) and ``-h sum_i
+    gamma_i g_{p_i}**2`` with damping, the discrete form of ``dH/dt = -sum_i
+    gamma_i (dq_i/dt)**2``, since ``g_p = (q1 - q0) / h``. Both hold to
+    round-off when the average is exact: for a polynomial ``H`` of degree
+    ``n`` the integrand has degree ``n - 1`` in ``xi`` and ``ceil(n / 2)``
+    Gauss-Legendre nodes suffice (the model says how many it needs, more for
+    trigonometric terms). For a model without a Hamiltonian the map is the
+    same, without a conservation law; it is the map a fit on observed steps
+    learns. The implicit equation is solved by simplified Newton iterations
+    with the matrix ``I - (h / 2) Df(y0)`` until the update is at round-off.
 
     Parameters
     ----------
     dynamics : Dynamics
-        A model with ``gradient``, ``hessian`` and ``n_nodes``.
+        A model with ``jacobian`` and ``n_nodes``.
     rtol : float, default=1e-14
         Newton stops when the update is below ``rtol`` times the state's size.
     max_iter : int, default=100
@@ -56,37 +58,32 @@ class AveragedVectorField(FixedStepIntegrator):
         self.weights = 0.5 * weights
 
     def _check(self, dynamics):
-        if dynamics.gradient is None or dynamics.hessian is None:
+        if dynamics.jacobian is None:
             raise ValueError(
-                "method='avf' needs a Hamiltonian, which this model does not learn; "
-                "use method='rk4', or HamiltonianRegressor."
+                "method='avf' needs the Jacobian of the model's vector field, which "
+                "this model does not provide; use method='rk4'."
             )
 
-    def _averaged_gradient(self, y0, y1):
+    def _averaged_field(self, y0, y1):
         n = y0.shape[0]
         diff = y1 - y0
         points = y0[None] + self.nodes[:, None, None] * diff[None]
-        grads = self.dynamics.gradient(points.reshape(-1, y0.shape[1])).reshape(points.shape)
-        return np.tensordot(self.weights, grads, axes=1).reshape(n, -1)
+        values = self.fun(points.reshape(-1, y0.shape[1])).reshape(points.shape)
+        return np.tensordot(self.weights, values, axes=1).reshape(n, -1)
 
     def _step_impl(self, y, h):
-        damping = self.dynamics.damping
         n_features = y.shape[1]
-        # S applied to the first index of the Hessian: the Jacobian of S grad H.
-        jacobian = np.eye(n_features) - (0.5 * h) * apply_structure(
-            np.swapaxes(self.dynamics.hessian(y), 1, 2), damping
-        ).swapaxes(1, 2)
         with np.errstate(all="ignore"):
-            newton_matrix = np.linalg.inv(jacobian)
+            newton_matrix = np.linalg.inv(
+                np.eye(n_features) - (0.5 * h) * self.dynamics.jacobian(y)
+            )
         y1 = y + h * self.fun(y)
         scale = np.maximum(np.abs(y).max(axis=1), 1.0)
         converged = np.zeros(y.shape[0], dtype=bool)
         previous = np.full(y.shape[0], np.inf)
         for _ in range(self.max_iter):
             todo = ~converged
-            residual = y1[todo] - y[todo] - h * apply_structure(
-                self._averaged_gradient(y[todo], y1[todo]), damping
-            )
+            residual = y1[todo] - y[todo] - h * self._averaged_field(y[todo], y1[todo])
             delta = np.einsum("bij,bj->bi", newton_matrix[todo], residual)
             y1[todo] -= delta
             size = np.abs(delta).max(axis=1)

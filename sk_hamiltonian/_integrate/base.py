@@ -20,41 +20,37 @@ def apply_inverse_symplectic(g):
 class Dynamics:
     """What an integrator may ask of a model of ``dy/dt = f(y)``.
 
-    Every model gives its vector field. A Hamiltonian model also gives
-    ``grad H`` and its Hessian (for the energy-conserving method), optionally
-    a linear damping ``gamma`` (``dp/dt = -dH/dq - gamma * dH/dp``), and, when
-    ``H = T(p) + V(q)``, the two partial gradients that explicit symplectic
-    methods step with.
+    Every model gives its vector field, and its Jacobian for the implicit
+    averaged-vector-field method. A Hamiltonian model may also give a linear
+    damping ``gamma`` (``dp/dt = -dH/dq - gamma * dH/dp``) and, when ``H =
+    T(p) + V(q)``, the two partial gradients that explicit symplectic methods
+    step with.
 
     Parameters
     ----------
     field : callable
         ``f``, mapping ``(n, n_features)`` to ``(n, n_features)``.
-    gradient : callable, default=None
-        ``grad H``, same shapes; None for a model without a Hamiltonian.
-    hessian : callable, default=None
-        Hessian of ``H``, mapping ``(n, n_features)`` to
-        ``(n, n_features, n_features)``.
+    jacobian : callable, default=None
+        ``Df``, mapping ``(n, n_features)`` to ``(n, n_features, n_features)``.
     damping : ndarray of shape (n_features // 2,), default=None
         Linear damping coefficients; None (or all zero) for a conservative model.
     kinetic_gradient, potential_gradient : callable, default=None
         ``dT/dp`` and ``dV/dq`` of a separable ``H``, mapping ``(n, d)`` to
         ``(n, d)``; None for a model that is not separable.
     n_nodes : int, default=1
-        Gauss-Legendre nodes that make the average of ``grad H`` over a
-        segment exact (or accurate to round-off), for the AVF method.
+        Gauss-Legendre nodes that make the average of ``f`` over a segment
+        exact (or accurate to round-off), for the AVF method.
     wrap : callable, default=None
         Maps states to their canonical representatives (periodic variables
         into their period); applied between output times.
     """
 
     def __init__(
-        self, field, *, gradient=None, hessian=None, damping=None, kinetic_gradient=None,
+        self, field, *, jacobian=None, damping=None, kinetic_gradient=None,
         potential_gradient=None, n_nodes=1, wrap=None,
     ):
         self.field = field
-        self.gradient = gradient
-        self.hessian = hessian
+        self.jacobian = jacobian
         self.damping = None if damping is None or not np.any(damping) else np.asarray(damping)
         self.kinetic_gradient = kinetic_gradient
         self.potential_gradient = potential_gradient
