@@ -359,7 +359,7 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
             return self.dt_
         return STEP_FRACTION[method] * self.time_scale_
 
-    def simulate(self, x0, t, *, method=None, max_step=None):
+    def simulate(self, x0, t, *, method=None, max_step=None, on_failure="raise"):
         """Integrate the learned system from one or several initial states.
 
         Parameters
@@ -386,6 +386,12 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
             for the second-order ones), which keeps the integration error far
             below the model's error. ``numpy.inf`` steps from one output time
             to the next.
+        on_failure : {"raise", "nan"}, default="raise"
+            What happens when a trajectory becomes non-finite or an implicit
+            step does not converge: ``"raise"`` a :class:`SimulationError`;
+            ``"nan"`` fill that trajectory with NaN from the first output time
+            it could not reach on (the other trajectories are unaffected), for
+            studies of where and when models fail.
 
         Returns
         -------
@@ -396,7 +402,8 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
         Raises
         ------
         SimulationError
-            If a trajectory became non-finite or an implicit step did not converge.
+            If a trajectory became non-finite or an implicit step did not
+            converge, with ``on_failure="raise"``.
         """
         check_is_fitted(self)
         x0 = np.asarray(x0, dtype=float)
@@ -419,10 +426,15 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
         integrator = self._integrator(method)
         if max_step is None:
             max_step = self._default_step(integrator.name)
+        if on_failure not in ("raise", "nan"):
+            raise ValueError(f"on_failure must be 'raise' or 'nan'; got {on_failure!r}.")
         Y, failed_at = integrate(integrator, x0, t, max_step)
-        raise_on_failure(failed_at, t, what=f"the learned system ({type(self).__name__})")
+        if on_failure == "raise":
+            raise_on_failure(failed_at, t, what=f"the learned system ({type(self).__name__})")
         Y = np.swapaxes(Y, 0, 1)
-        self._warn_outside(Y.reshape(-1, Y.shape[-1]), what="the simulated states", stacklevel=3)
+        reached = np.arange(t.shape[0])[None, :] < failed_at[:, None]
+        Y[~reached] = np.nan
+        self._warn_outside(Y[reached], what="the simulated states", stacklevel=3)
         return Y[0] if single else Y
 
     # --------------------------------------------------------------- scoring

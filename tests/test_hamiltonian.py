@@ -278,3 +278,19 @@ def test_predict_and_simulate_errors(cubic_model):
         cubic_model.simulate(np.zeros(4), [0, 1], max_step=0)
     with pytest.raises(ValueError, match="NaN"):
         cubic_model.simulate(np.array([np.nan, 0, 0, 0]), [0, 1])
+
+
+def test_simulate_on_failure_nan_marks_only_the_failed_trajectory(cubic_model):
+    t = np.linspace(0, 50, 501)
+    x0 = np.array([[0.1, 0.0, 0.0, 0.1], [3.0, 3.0, 3.0, 3.0]])  # the second escapes
+    with pytest.raises(SimulationError) as info:
+        cubic_model.simulate(x0, t, max_step=0.1)
+    failed = info.value.failed_at
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DomainWarning)
+        Y = cubic_model.simulate(x0, t, max_step=0.1, on_failure="nan")
+    assert np.isfinite(Y[0]).all()
+    assert np.isfinite(Y[1, : failed[1]]).all() and np.isnan(Y[1, failed[1] :]).all()
+    assert np.allclose(Y[0], cubic_model.simulate(x0[0], t, max_step=0.1))
+    with pytest.raises(ValueError, match="on_failure"):
+        cubic_model.simulate(x0[0], t, on_failure="ignore")
