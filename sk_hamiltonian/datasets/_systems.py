@@ -15,7 +15,7 @@ import numbers
 
 import numpy as np
 
-from .._integrate import RK4, apply_inverse_symplectic, integrate, raise_on_failure
+from .._integrate import RK4, apply_structure, integrate, raise_on_failure
 
 #: Sampling step of the trajectory data in the examples reproducing the paper.
 #: The paper does not state it; with 0.01 the O(dt**2) error of second-order
@@ -53,7 +53,11 @@ def _check_periodic(periodic, domain):
 
 
 class HamiltonianSystem:
-    """A known Hamiltonian system ``du/dt = J^{-1} grad H(u)``.
+    """A known Hamiltonian system ``du/dt = J^{-1} grad H(u)``, optionally damped.
+
+    With ``damping`` ``gamma``, the momenta feel linear friction:
+    ``dp/dt = -dH/dq - gamma * dH/dp`` (``dH/dp = dq/dt``), and the energy
+    decreases at the rate ``sum_i gamma_i (dq_i/dt)**2``.
 
     Parameters
     ----------
@@ -74,6 +78,9 @@ class HamiltonianSystem:
     periodic : array-like of bool of shape (2 * n_dof,), default=None
         Which state components are angles whose ``domain`` row ``[low, high)``
         is exactly one full period ``high - low``. None marks none.
+    damping : array-like of shape (n_dof,), default=None
+        Friction coefficients ``gamma >= 0``, one per degree of freedom; None
+        (or zeros) for a conservative system.
 
     Attributes
     ----------
@@ -95,6 +102,8 @@ class HamiltonianSystem:
         differ by whole periods there are the same physical state. Trajectories
         from :meth:`solve` and :func:`make_trajectories` are continuous: their
         angles are not wrapped into ``[low, high)`` and may leave the domain.
+    damping : ndarray of shape (n_dof,)
+        Read-only friction coefficients (zeros for a conservative system).
 
     Examples
     --------
@@ -108,7 +117,7 @@ class HamiltonianSystem:
 
     def __init__(
         self, name, hamiltonian, gradient, domain, initial_state, paper_settings=None,
-        params=None, *, periodic=None,
+        params=None, *, periodic=None, damping=None,
     ):
         domain = _read_only(domain)
         if domain.ndim != 2 or domain.shape[1] != 2 or domain.shape[0] % 2:
@@ -122,6 +131,14 @@ class HamiltonianSystem:
                 f"domain, got {initial_state.shape}."
             )
         periodic = _check_periodic(periodic, domain)
+        n_dof = domain.shape[0] // 2
+        damping = _read_only(np.zeros(n_dof) if damping is None else damping)
+        if damping.shape != (n_dof,) or not np.all(np.isfinite(damping)) or np.any(damping < 0):
+            raise ValueError(
+                f"damping must hold {n_dof} finite friction coefficients >= 0, one per "
+                f"degree of freedom; got {np.asarray(damping).tolist()}."
+            )
+        self.damping = damping
         self.name = name
         self.n_dof = domain.shape[0] // 2
         self.domain = domain
@@ -177,7 +194,7 @@ class HamiltonianSystem:
         return self._gradient(self._check_states(X))
 
     def vector_field(self, X):
-        """Evaluate Hamilton's equations ``J^{-1} grad H``.
+        """Evaluate Hamilton's equations ``J^{-1} grad H`` (with the damping).
 
         Parameters
         ----------
@@ -187,11 +204,14 @@ class HamiltonianSystem:
         Returns
         -------
         dXdt : ndarray of shape (..., 2 * n_dof)
-            ``(dp/dt, dq/dt) = (-dH/dq, dH/dp)`` at ``X``.
+            ``(dp/dt, dq/dt) = (-dH/dq - gamma * dH/dp, dH/dp)`` at ``X``.
         """
-        return apply_inverse_symplectic(self.gradient(X))
+        return self._field(self._check_states(X))
 
-    def solve(self, x0, t, max_step=None):
+    def _field(self, X):
+        return apply_structure(self._gradient(X), self.damping if self.damping.any() else None)
+
+    def solve(self, x0, t, max_step=None, *, on_failure="raise"):
         """Reference solution by the classical Runge-Kutta method (RK4).
 
         Parameters
@@ -204,6 +224,10 @@ class HamiltonianSystem:
             Largest RK4 step. None uses a hundredth of the smallest interval
             of ``t``, fine enough that the reference error is far below any
             learning error (the paper used a ten-thousandth).
+        on_failure : {"raise", "nan"}, default="raise"
+            When a solution becomes non-finite (it blows up in finite time):
+            raise, or fill it with NaN from the first output time it did not
+            reach (the other solutions go on).
 
         Returns
         -------
@@ -215,7 +239,7 @@ class HamiltonianSystem:
         Raises
         ------
         SimulationError
-            If a solution becomes non-finite (it blows up in finite time).
+            If a solution becomes non-finite, with ``on_failure="raise"``.
 
         Examples
         --------
@@ -244,15 +268,18 @@ class HamiltonianSystem:
             max_step = np.diff(t).min() / 100.0 if t.shape[0] > 1 else None
         elif not (isinstance(max_step, numbers.Real) and 0 < max_step < math.inf):
             raise ValueError(f"max_step must be a positive finite number, got {max_step!r}.")
-        fun = lambda y: apply_inverse_symplectic(self._gradient(y))  # noqa: E731
-        y, failed_at = integrate(RK4(fun), np.atleast_2d(x0), t, max_step=max_step)
-        raise_on_failure(
-            failed_at,
-            t,
-            what=f"the true {self.name} system",
-            hint="Its exact solution blows up there: stop the horizon before that time.",
-        )
+        if on_failure not in ("raise", "nan"):
+            raise ValueError(f"on_failure must be 'raise' or 'nan'; got {on_failure!r}.")
+        y, failed_at = integrate(RK4(self._field), np.atleast_2d(x0), t, max_step=max_step)
+        if on_failure == "raise":
+            raise_on_failure(
+                failed_at,
+                t,
+                what=f"the true {self.name} system",
+                hint="Its exact solution blows up there: stop the horizon before that time.",
+            )
         y = np.swapaxes(y, 0, 1)
+        y[np.arange(t.shape[0])[None, :] >= failed_at[:, None]] = np.nan
         return y[0] if x0.ndim == 1 else y
 
 
@@ -267,10 +294,11 @@ def _check_positive(**values):
             raise ValueError(f"{name} must be a positive finite number, got {value!r}.")
 
 
-def single_pendulum(length=1.0, g=9.8):
-    """Example 1: ideal single pendulum with unit mass.
+def single_pendulum(length=1.0, g=9.8, *, damping=0.0):
+    """Example 1: ideal single pendulum with unit mass, optionally with friction.
 
-    ``H(p, q) = p**2 / (2 l**2) + g l (1 - cos q)``.
+    ``H(p, q) = p**2 / (2 l**2) + g l (1 - cos q)``; with ``damping``
+    ``gamma``, ``dp/dt = -dH/dq - gamma dq/dt``.
 
     Parameters
     ----------
@@ -278,6 +306,9 @@ def single_pendulum(length=1.0, g=9.8):
         Length ``l`` of the pendulum.
     g : float, default=9.8
         Gravitational constant.
+    damping : float, default=0.0
+        Linear friction coefficient ``gamma >= 0``. Non-zero values make a
+        damped pendulum (not one of the paper's examples: no paper settings).
 
     Returns
     -------
@@ -285,6 +316,8 @@ def single_pendulum(length=1.0, g=9.8):
         Domain ``(-2 pi, 2 pi) x (-pi, pi)``, ``u0* = (-3.876, -1.193)``.
     """
     _check_positive(length=length, g=g)
+    if not (isinstance(damping, numbers.Real) and 0 <= damping < math.inf):
+        raise ValueError(f"damping must be a finite number >= 0, got {damping!r}.")
 
     def hamiltonian(X):
         p, q = X[..., 0], X[..., 1]
@@ -294,12 +327,16 @@ def single_pendulum(length=1.0, g=9.8):
         p, q = _split(X)
         return np.concatenate([p / length**2, g * length * np.sin(q)], axis=-1)
 
+    damped = damping > 0
     return HamiltonianSystem(
-        "single_pendulum", hamiltonian, gradient,
+        "damped_pendulum" if damped else "single_pendulum", hamiltonian, gradient,
         domain=[[-2 * np.pi, 2 * np.pi], [-np.pi, np.pi]],
         initial_state=[-3.876, -1.193],
-        paper_settings=dict(degree=6, n_trajectories=500, n_intervals=40, noise=0.08),
-        params=dict(length=length, g=g),
+        paper_settings=(
+            None if damped else dict(degree=6, n_trajectories=500, n_intervals=40, noise=0.08)
+        ),
+        params=dict(length=length, g=g, **(dict(damping=damping) if damped else {})),
+        damping=[damping],
     )
 
 
