@@ -6,7 +6,7 @@ from numbers import Integral, Real
 import numpy as np
 from sklearn.base import BaseEstimator, RegressorMixin, _fit_context
 from sklearn.utils import check_array
-from sklearn.utils._param_validation import Interval, StrOptions
+from sklearn.utils._param_validation import Interval, InvalidParameterError, StrOptions
 from sklearn.utils.validation import _check_sample_weight, check_is_fitted, validate_data
 
 from ._design import TrainingData
@@ -119,6 +119,7 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
         self : object
             The fitted estimator.
         """
+        self._check_integer_params()
         data = self._training_data(X, y, sample_weight)
         n_states = data.states.shape[1]
         self._check_dimensions(n_states)
@@ -143,6 +144,16 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
         self.time_scale_ = self._time_scale(data.states)
         self._after_fit(data)
         return self
+
+    def _check_integer_params(self):
+        # scikit-learn's Interval(Integral) lets booleans through; True is no degree.
+        for name in ("degree", "momentum_degree", "max_interaction"):
+            value = getattr(self, name)
+            if isinstance(value, (bool, np.bool_)):
+                raise InvalidParameterError(
+                    f"The {name!r} parameter of {type(self).__name__} must be an int, not "
+                    f"a boolean; got {value!r}."
+                )
 
     def _training_data(self, X, y, sample_weight):
         """Validate the input and gather what the fit needs."""

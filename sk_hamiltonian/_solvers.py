@@ -49,7 +49,12 @@ def solve_dense(A, b):
     """
     norms = _column_norms(np.einsum("ij,ij->j", A, A))
     A /= norms
-    coef, _, rank, singular = linalg.lstsq(A, b, lapack_driver="gelsd", check_finite=False)
+    # A cut-off that depends on the columns only: repeating rows (integer
+    # sample weights) must not change which singular values count.
+    cutoff = np.finfo(float).eps * A.shape[1]
+    coef, _, rank, singular = linalg.lstsq(
+        A, b, cond=cutoff, lapack_driver="gelsd", check_finite=False
+    )
     cond = singular[0] / singular[-1] if singular[-1] > 0 else np.inf
     return coef / (norms if coef.ndim == 1 else norms[:, None]), float(cond), int(rank)
 

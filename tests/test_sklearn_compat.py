@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 from sklearn.base import clone
 from sklearn.exceptions import NotFittedError
-from sklearn.utils.estimator_checks import parametrize_with_checks
+from sklearn.utils.estimator_checks import check_estimator, parametrize_with_checks
 
 from sk_hamiltonian import DerivativeTransformer, HamiltonianRegressor, VectorFieldRegressor
 
@@ -53,12 +53,16 @@ HAMILTONIAN_EXPECTED_FAILURES = {
     "check_n_features_in": Y_SHAPE,
     "check_sample_weights_pandas_series": Y_SHAPE,
     "check_sample_weights_not_an_array": Y_SHAPE,
-    "check_sample_weights_list": Y_SHAPE,
+    "check_sample_weights_list": ODD,
     "check_sample_weights_shape": Y_SHAPE,
     "check_sample_weights_not_overwritten": Y_SHAPE,
     "check_sample_weight_equivalence_on_dense_data": Y_SHAPE,
     "check_fit2d_1sample": Y_SHAPE,
 }
+
+
+# What each reason says the failing fit must have complained about.
+REASON_MESSAGES = {ODD: "must be even", Y_SHAPE: "same shape as X"}
 
 
 def expected_failed_checks(estimator):
@@ -67,15 +71,37 @@ def expected_failed_checks(estimator):
     return {}
 
 
-# VectorFieldRegressor is a general polynomial regressor; degree 1 keeps the
-# generated problems (up to 10 features, 10 samples) overdetermined.
+# VectorFieldRegressor is a general polynomial regressor; at its default degree
+# the generated problems (up to 10 features, a few samples) are underdetermined,
+# and it returns the minimum-norm least-squares solution (with a warning).
 @parametrize_with_checks(
-    [HamiltonianRegressor(), VectorFieldRegressor(degree=1), DerivativeTransformer(dt=0.1)],
+    [HamiltonianRegressor(), VectorFieldRegressor(), DerivativeTransformer(dt=0.1)],
     expected_failed_checks=expected_failed_checks,
     xfail_strict=True,
 )
 def test_sklearn_common_checks(estimator, check):
     check(estimator)
+
+
+def _messages(error):
+    """The message of an error and of every error it was raised from."""
+    while error is not None:
+        yield str(error)
+        error = error.__cause__ or error.__context__
+
+
+def test_expected_failures_fail_for_the_stated_reason():
+    # A strict xfail only says that a check fails; this says why.
+    results = check_estimator(HamiltonianRegressor(), on_fail=None)
+    seen = set()
+    for result in results:
+        name = result["check_name"]
+        if name not in HAMILTONIAN_EXPECTED_FAILURES or result["status"] != "failed":
+            continue
+        expected = REASON_MESSAGES[HAMILTONIAN_EXPECTED_FAILURES[name]]
+        assert any(expected in m for m in _messages(result["exception"])), name
+        seen.add(name)
+    assert seen == set(HAMILTONIAN_EXPECTED_FAILURES)
 
 
 def hamiltonian_data(n_samples=60, seed=0):

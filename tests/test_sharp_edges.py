@@ -1,0 +1,117 @@
+"""Sharp edges a new user met, each turned into a clear error or warning.
+
+Each test is named after what it protects.
+"""
+
+import warnings
+
+import numpy as np
+import pytest
+from sklearn.pipeline import make_pipeline
+
+from sk_hamiltonian import (
+    DerivativeTransformer,
+    DomainWarning,
+    HamiltonianRegressor,
+    VectorFieldRegressor,
+)
+
+
+@pytest.fixture(scope="module")
+def pendulum():
+    rng = np.random.default_rng(0)
+    X = rng.uniform([-2, -1.5], [2, 1.5], size=(200, 2))
+    y = np.column_stack([-np.sin(X[:, 1]), X[:, 0]])
+    return X, y, HamiltonianRegressor(degree=6).fit(X, y)
+
+
+def test_state_constant_up_to_round_off_is_refused_not_fitted():
+    # After smoothing, a constant variable can differ from itself by 1e-15: a
+    # bounding box that thin makes predictions explode just outside it.
+    X = np.column_stack([np.linspace(-1, 1, 50), 1.0 - 1e-15 * np.arange(50) % 2])
+    with pytest.raises(ValueError, match=r"\[1\] are constant.*explicit `domain`"):
+        HamiltonianRegressor(degree=2).fit(X, X)
+
+
+@pytest.mark.parametrize("name", ["degree", "momentum_degree", "max_interaction"])
+@pytest.mark.parametrize("Regressor", [HamiltonianRegressor, VectorFieldRegressor])
+def test_boolean_integer_parameters_are_refused(pendulum, Regressor, name):
+    X, y, _ = pendulum
+    with pytest.raises(ValueError, match=f"'{name}' parameter.*not a boolean"):
+        Regressor(**{name: True}).fit(X, y)
+
+
+def test_one_dimensional_domain_names_the_expected_shape(pendulum):
+    X, y, _ = pendulum
+    with pytest.raises(ValueError, match=r"domain must have shape \(2, 2\)"):
+        HamiltonianRegressor(domain=[-1, 1]).fit(X, y)
+
+
+def test_complex_states_are_refused_not_truncated(pendulum):
+    _, _, model = pendulum
+    Z = np.ones((2, 3, 2)) * (1 + 1j)
+    for method in (model.hamiltonian, model.gradient):
+        with pytest.raises(ValueError, match="[Cc]omplex"):
+            method(Z)
+
+
+def test_hamiltonian_and_gradient_warn_outside_the_domain_like_predict(pendulum):
+    _, _, model = pendulum
+    outside = np.array([[5.0, 0.0]])
+    for method in (model.predict, model.hamiltonian, model.gradient):
+        with pytest.warns(DomainWarning, match="outside the domain"):
+            method(outside)
+
+
+def test_single_state_needs_a_leading_axis_everywhere(pendulum):
+    _, _, model = pendulum
+    for method in (model.predict, model.hamiltonian, model.gradient):
+        with pytest.raises(ValueError, match="2D array|x\\[None\\]"):
+            method(np.array([0.1, 0.2]))
+    # Leading axes are fine for hamiltonian and gradient (e.g. simulate output).
+    assert model.hamiltonian(np.zeros((3, 4, 2))).shape == (3, 4)
+
+
+def test_score_on_states_without_derivatives_says_what_it_needs(pendulum):
+    X, _, model = pendulum
+    with pytest.raises(ValueError, match="score needs y.*derivative layout"):
+        model.score(X)
+
+
+def test_zero_weight_samples_do_not_stretch_the_domain(pendulum):
+    X, y, _ = pendulum
+    far = np.vstack([X, [[50.0, 50.0]]])
+    weights = np.r_[np.ones(len(X)), 0.0]
+    model = HamiltonianRegressor(degree=6).fit(far, np.vstack([y, [[0.0, 0.0]]]), weights)
+    assert np.allclose(model.domain_, HamiltonianRegressor(degree=6).fit(X, y).domain_)
+
+
+def test_sample_weight_per_trajectory_through_a_pipeline():
+    rng = np.random.default_rng(1)
+    t = 0.05 * np.arange(30)
+    phases = rng.uniform(0, 2 * np.pi, size=12)
+    amplitudes = rng.uniform(0.5, 1.5, size=12)
+    X = np.stack([a * np.column_stack([-np.sin(t + s), np.cos(t + s)])
+                  for a, s in zip(amplitudes, phases)])
+    pipe = make_pipeline(DerivativeTransformer(dt=0.05, degree=6), HamiltonianRegressor(degree=2))
+    weights = rng.integers(1, 4, size=12)
+    weighted = pipe.fit(X, hamiltonianregressor__sample_weight=weights)[-1].coef_.copy()
+    repeated = pipe.fit(np.repeat(X, weights, axis=0))[-1].coef_
+    # Integer weights are repetitions of whole trajectories.
+    assert np.allclose(weighted, repeated, rtol=1e-9, atol=1e-12)
+    with pytest.raises(ValueError, match=r"one weight per trajectory, shape \(12,\)"):
+        pipe.fit(X, hamiltonianregressor__sample_weight=np.ones(5))
+
+
+def test_underdetermined_baseline_gives_minimum_norm_fit_with_a_warning():
+    from sk_hamiltonian import IllConditionedWarning
+
+    rng = np.random.default_rng(2)
+    X = rng.uniform(-1, 1, size=(8, 4))
+    y = rng.normal(size=(8, 4))
+    with pytest.warns(IllConditionedWarning, match="rank 8 of 35"):
+        model = VectorFieldRegressor(degree=3).fit(X, y)
+    # It interpolates the data.
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DomainWarning)
+        assert np.allclose(model.predict(X), y, atol=1e-8)
