@@ -218,7 +218,10 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
             domain[self.periodic_] = [-np.pi, np.pi]
             width = domain[:, 1] - domain[:, 0]
             scale = np.maximum(np.abs(domain).max(axis=1), np.finfo(float).tiny)
-            flat = np.flatnonzero(width <= 1e-9 * scale)
+            # Thinner than round-off of the values, or so thin that the map to
+            # the window overflows.
+            with np.errstate(divide="ignore", over="ignore"):
+                flat = np.flatnonzero((width <= 1e-9 * scale) | ~np.isfinite(2.0 / width))
             if flat.size:
                 raise ValueError(
                     f"State variable(s) {flat.tolist()} are constant in the training "
@@ -228,7 +231,11 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
                 )
             return domain
         domain = check_array(self.domain, input_name="domain", ensure_2d=False)
-        if domain.shape != (n_states, 2) or np.any(domain[:, 1] <= domain[:, 0]):
+        with np.errstate(divide="ignore", over="ignore", invalid="ignore"):
+            degenerate = domain.shape == (n_states, 2) and not np.all(
+                np.isfinite(2.0 / (domain[:, 1] - domain[:, 0]))
+            )
+        if domain.shape != (n_states, 2) or np.any(domain[:, 1] <= domain[:, 0]) or degenerate:
             raise ValueError(
                 f"domain must have shape ({n_states}, 2) with one (low, high) row "
                 f"per state variable and low < high; got {np.asarray(self.domain).tolist()}."
@@ -291,6 +298,7 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
         jacobian = self._jacobian(states[:: max(1, states.shape[0] // TIME_SCALE_SAMPLES)])
         if jacobian is None:
             return float("nan")
+        jacobian = jacobian[np.isfinite(jacobian).all(axis=(1, 2))]
         with np.errstate(all="ignore"):
             radius = np.abs(np.linalg.eigvals(jacobian)).max(axis=1)
         radius = radius[np.isfinite(radius)]
