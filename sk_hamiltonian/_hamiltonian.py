@@ -263,8 +263,11 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
         self.energy_trend_, self.energy_trend_z_ = float("nan"), float("nan")
         if data.trajectories is None:
             return
+        # H~ at every training state in one batch, then split by trajectory.
+        lengths = [S.shape[0] for _, S in data.trajectories]
+        energies = np.split(self._hamiltonian(data.states), np.cumsum(lengths)[:-1])
         self.energy_trend_, self.energy_trend_z_ = energy_trend(
-            [(t, self._hamiltonian(S)) for t, S in data.trajectories]
+            [(t, H) for (t, _), H in zip(data.trajectories, energies)]
         )
         if not np.isfinite(self.energy_trend_z_):
             return

@@ -50,8 +50,10 @@ DENSE_MAX_ENTRIES = 50_000_000
 # Cholesky is not trusted and the eigen pseudo-inverse is used (the design's
 # condition number above 1e7: refinement would then gain little).
 CHOLESKY_RCOND = 1e-14
-# Refinement steps against the design after a Cholesky solve.
-REFINEMENT_STEPS = 2
+# Refinement steps against the design after a Cholesky solve, stopped early
+# once a correction is below REFINED relative to the solution.
+REFINEMENT_STEPS = 3
+REFINED = 1e-12
 # Up to this many unknowns, the condition number of the normal matrix is
 # computed exactly (eigvalsh); beyond, estimated by power and inverse iteration.
 EXACT_COND_MAX = 1500
@@ -309,7 +311,12 @@ def solve_normal(gram, rhs, residual=None):
     if residual is not None:
         for _ in range(REFINEMENT_STEPS):
             correction = _scale(residual(_scale(solution, norms)), norms)
-            solution = solution + linalg.cho_solve(factor, correction, check_finite=False)
+            step = linalg.cho_solve(factor, correction, check_finite=False)
+            solution = solution + step
+            # A correction at round-off level means the solve was already
+            # accurate: another pass over the design would change nothing.
+            if np.linalg.norm(step) <= REFINED * np.linalg.norm(solution):
+                break
     return _scale(solution, norms), _normal_condition(G, factor), G.shape[0]
 
 

@@ -206,7 +206,7 @@ class ContractionPlan:
             incidence = self._incidence(k)
             factors = scratch("contract.factors", (n_orders, level.n_nodes, n_samples))
             for r in range(n_orders):
-                np.take(tables[r, k - 1], level.key, axis=0, out=factors[r])
+                np.take(tables[r, k - 1], level.key, axis=0, out=factors[r], mode="clip")
             products = scratch("contract.products", (counts[0], level.n_nodes, K, n_samples))
             new = np.empty((sum(counts), level.starts.size, K, n_samples))
             made = 0
@@ -268,7 +268,7 @@ class ContractionPlan:
             level = self.levels[k]
             factors = scratch("adjoint.factors", (n_orders, level.n_nodes, n_samples))
             for r in range(n_orders):
-                np.take(tables[r, k - 1], level.key, axis=0, out=factors[r])
+                np.take(tables[r, k - 1], level.key, axis=0, out=factors[r], mode="clip")
             if keep is not None:
                 unsorted = np.empty_like(bar)
                 unsorted[keep] = bar

@@ -191,6 +191,14 @@ class ModelSpace:
         """Gradients, terms-major: ndarray (n_terms, n_states, n_samples), into ``out`` if given."""
         return tensor.gradients(self.factor_tables(X, 1), self.layout, out=out)
 
+    def gradient_rows_t(self, X, rows, outs):
+        """``d phi_j / d x_i`` for the functions ``rows[i]``, into ``outs[i]`` (dense layouts).
+
+        See :func:`.tensor.gradient_rows`; a design assembled by variable
+        skips the functions that do not depend on it.
+        """
+        tensor.gradient_rows(self.factor_tables(X, 1), self.layout, rows, outs)
+
     def value_dot(self, X, coef):
         """Values of ``sum_j coef[j] phi_j`` (``coef`` may have a trailing target axis)."""
         result = self._contract(X, coef, 0)

@@ -150,7 +150,7 @@ def values(tables, layout, out=None):
         chunk = tables[..., part]
         (parents,) = _prefix_products(chunk, layout, 0)
         factor = scratch("tensor.factor", (n_terms, part.stop - part.start))
-        np.take(_flat(chunk[0]), last, axis=0, out=factor)
+        np.take(_flat(chunk[0]), last, axis=0, out=factor, mode="clip")
         np.multiply(parents[layout.leaf_parent], factor, out=out[:, part])
     return out
 
@@ -188,17 +188,17 @@ def gradients(tables, layout, out=None):
         carried = _prefix_products(chunk, layout, 1)
         factor = scratch("tensor.factor", (n_terms, width))
         parent = scratch("tensor.parent", (n_terms, width))
-        np.take(_flat(chunk[0]), last, axis=0, out=factor)
+        np.take(_flat(chunk[0]), last, axis=0, out=factor, mode="clip")
         # Slot t's derivative: the carried derivative along t times the last
         # factor, or (last slot) the carried value times the last derivative.
         for t in range(layout.n_slots):
             if t < layout.n_slots - 1:
-                np.take(carried[1 + t], layout.leaf_parent, axis=0, out=parent)
+                np.take(carried[1 + t], layout.leaf_parent, axis=0, out=parent, mode="clip")
                 other = factor
             else:
-                np.take(carried[0], layout.leaf_parent, axis=0, out=parent)
+                np.take(carried[0], layout.leaf_parent, axis=0, out=parent, mode="clip")
                 other = scratch("tensor.last", (n_terms, width))
-                np.take(_flat(chunk[1]), last, axis=0, out=other)
+                np.take(_flat(chunk[1]), last, axis=0, out=other, mode="clip")
             if layout.dense:
                 np.multiply(parent, other, out=out[:, t, part])
                 continue
@@ -209,6 +209,38 @@ def gradients(tables, layout, out=None):
             parent *= other
             out[terms[real], layout.variables[real, t], part] = parent[real]
     return out
+
+
+def gradient_rows(tables, layout, rows, outs):
+    """Selected functions' derivatives along each variable, for a dense layout.
+
+    Parameters
+    ----------
+    tables : ndarray
+        Factor tables with first derivatives.
+    layout : SlotLayout
+        A dense layout (slot ``i`` is variable ``i``).
+    rows : list of ndarray of int
+        Per variable ``i``, the functions whose ``d / d x_i`` to compute
+        (e.g. those that depend on ``x_i``).
+    outs : list of ndarray of shape (len(rows[i]), n_samples)
+        Where to write ``d phi_rows[i][k] / d x_i``.
+    """
+    n_samples = tables.shape[-1]
+    m = layout.n_states
+    last = layout.keys[:, -1]
+    parents = [layout.leaf_parent[r] for r in rows]
+    keys = [last[r] for r in rows]
+    for part in _chunks(max(r.size for r in rows), n_samples):
+        chunk = tables[..., part]
+        carried = _prefix_products(chunk, layout, 1)
+        values, slopes = _flat(chunk[0]), _flat(chunk[1])
+        for i in range(m):
+            if i < m - 1:
+                source, factor = carried[1 + i], np.take(values, keys[i], axis=0)
+            else:
+                source, factor = carried[0], np.take(slopes, keys[i], axis=0)
+            np.multiply(np.take(source, parents[i], axis=0), factor, out=outs[i][:, part])
 
 
 def _slot_factors(table, layout):
