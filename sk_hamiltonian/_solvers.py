@@ -46,6 +46,12 @@ from .exceptions import IllConditionedWarning
 # Designs up to this many entries (400 MB in float64) are factorized whole by
 # "auto" (today's answers on small problems, to round-off).
 DENSE_MAX_ENTRIES = 50_000_000
+# From this many unknowns on, "auto" solves by conjugate gradients. Measured
+# on the double pendulum (benchmarks/bench_scale.py): one iteration costs
+# 1/13 of the (grouped) Gram matrix at n = 14 (3 059 unknowns) and 1/100 at
+# n = 18 (7 314), while the closed-form preconditioner needs 100-200
+# iterations, so the Gram matrix wins below about 10 000 unknowns.
+ITERATIVE_MIN_TERMS = 10_000
 # Reciprocal condition number of the equilibrated normal matrix below which
 # Cholesky is not trusted and the eigen pseudo-inverse is used (the design's
 # condition number above 1e7: refinement would then gain little).
@@ -63,7 +69,7 @@ CG_RTOL = 1e-11
 CG_MAX_ITER = 400
 
 
-def choose_solver(solver, n_rows, n_terms, iterative=True):
+def choose_solver(solver, n_rows, n_terms):
     """Resolve ``solver="auto"`` from the size of the design.
 
     Parameters
@@ -72,20 +78,20 @@ def choose_solver(solver, n_rows, n_terms, iterative=True):
         The requested solver.
     n_rows, n_terms : int
         Shape of the design.
-    iterative : bool, default=True
-        Whether the fit offers the design as an operator.
 
     Returns
     -------
     solver : str
-        ``"lstsq"`` up to ``DENSE_MAX_ENTRIES`` entries, else ``"iterative"``
-        when available, else ``"normal"``.
+        ``"lstsq"`` up to ``DENSE_MAX_ENTRIES`` entries; beyond, ``"normal"``,
+        and ``"iterative"`` from ``ITERATIVE_MIN_TERMS`` unknowns on, where
+        the Gram matrix costs more than the iterations it saves (and more
+        memory than is reasonable).
     """
     if solver != "auto":
         return solver
     if n_rows * n_terms <= DENSE_MAX_ENTRIES:
         return "lstsq"
-    return "iterative" if iterative else "normal"
+    return "iterative" if n_terms >= ITERATIVE_MIN_TERMS else "normal"
 
 
 def _column_norms(squared):
@@ -257,8 +263,11 @@ def _normal_condition(G, factor):
 def _eigen_solve(G, rhs):
     """Pseudo-inverse solve with ``lstsq``'s relative cut-off; (solution, cond, rank)."""
     eigenvalues, eigenvectors = linalg.eigh(G, check_finite=False)
-    # Eigenvalues of the normal matrix are squared singular values of the design.
-    cutoff = eigenvalues[-1] * (np.finfo(float).eps * max(G.shape)) ** 2
+    # Eigenvalues of the normal matrix are squared singular values of the
+    # design, but forming it rounds them by about eps * N * largest: below
+    # that they are noise (a singular value below sqrt(eps * N) relative is
+    # not resolved by the normal equations; lstsq would resolve it).
+    cutoff = eigenvalues[-1] * np.finfo(float).eps * max(G.shape)
     keep = eigenvalues > cutoff
     inverse = np.zeros_like(eigenvalues)
     inverse[keep] = 1.0 / eigenvalues[keep]
