@@ -227,16 +227,29 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
             self._warn_outside(data.states, what="the training states", stacklevel=4)
         state.add(self._design_blocks(data, grouped=True), data, self._training_step(data))
         self._partial = state
+        self._solve_accumulated(state, data)
+        return self
+
+    def _solve_accumulated(self, state, data, residual=None):
+        """Solve accumulated normal equations and set every fitted attribute.
+
+        ``state`` is a :class:`~sk_hamiltonian._streaming.PartialFitState`;
+        ``data`` (one chunk) serves the energy-trend check; ``residual(keep)``
+        optionally returns the refinement callback against the design.
+        """
         gram, rhs = state.normal_equations()
         n_columns, n_tail = self._n_unknowns(), self._n_nonnegative()
 
         def solve(keep):
-            return solve_normal(gram[np.ix_(keep, keep)], rhs[keep])
+            refine = None if residual is None else residual(keep)
+            if keep.all():
+                return solve_normal(gram, rhs, refine)
+            return solve_normal(gram[np.ix_(keep, keep)], rhs[keep], refine)
 
         if n_tail:
             coef, self.cond_, self.rank_ = solve_nonnegative_tail(solve, n_columns, n_tail)
         else:
-            coef, self.cond_, self.rank_ = solve_normal(gram, rhs)
+            coef, self.cond_, self.rank_ = solve(np.ones(n_columns, dtype=bool))
         self.solver_ = "normal"
         self._set_solution(coef)
         self._finish_fit(
@@ -244,7 +257,6 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
             time_scale_states=state.reservoir,
         )
         self.dt_ = state.training_step()
-        return self
 
     def _set_up_space(self, data, size_data=None):
         """Check the data against the parameters and build the model space."""

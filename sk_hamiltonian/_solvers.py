@@ -459,7 +459,9 @@ def solve_nonnegative_tail(solve, n_columns, n_tail):
     coef : ndarray of shape (n_columns,)
         Zero where an unknown was fixed.
     cond, rank
-        Of the last solve.
+        Of the last solve; ``rank`` counts the unknowns fixed at zero too
+        (the constraint determines them), so that a fixed damping is not
+        reported as lost rank.
     """
     keep = np.ones(n_columns, dtype=bool)
     while True:
@@ -468,7 +470,7 @@ def solve_nonnegative_tail(solve, n_columns, n_tail):
         coef[keep] = sub
         tail = coef[n_columns - n_tail :]
         if n_tail == 0 or tail.min() >= 0:
-            return coef, cond, rank
+            return coef, cond, rank + int(np.sum(~keep))
         keep[n_columns - n_tail + int(np.argmin(tail))] = False
 
 

@@ -98,6 +98,31 @@ class PartialFitState:
             # In order, so that a later state replaces an earlier one in the same slot.
             self.reservoir[slots[chosen]] = rest[chosen]
 
+    def merge(self, other):
+        """Add another state built over different samples (e.g. on another worker)."""
+        self.accumulator += other.accumulator
+        n, total = other.n_samples, self.n_samples + other.n_samples
+        if n:
+            delta = other.mean - self.mean
+            self.m2 += other.m2 + delta**2 * self.n_samples * n / total
+            self.mean += delta * n / total
+            self.mean_square += (other.mean_square - self.mean_square) * n / total
+            # Keep each reservoir's share in proportion to the samples it stands for.
+            pooled = np.vstack([self.reservoir, other.reservoir])
+            if pooled.shape[0] > RESERVOIR_SIZE:
+                share = np.r_[
+                    np.full(self.reservoir.shape[0], self.n_samples / max(1, self.reservoir.shape[0])),
+                    np.full(other.reservoir.shape[0], n / max(1, other.reservoir.shape[0])),
+                ]
+                keep = self._rng.choice(
+                    pooled.shape[0], RESERVOIR_SIZE, replace=False, p=share / share.sum()
+                )
+                pooled = pooled[np.sort(keep)]
+            self.reservoir = pooled
+            self.n_samples = total
+        self.steps += other.steps
+        return self
+
     def normal_equations(self):
         """The accumulated ``(A^T A, A^T b)``."""
         return self.accumulator.result()
