@@ -543,9 +543,24 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
             if isinstance(states, np.ndarray):
                 return self.predict(states.reshape(-1, states.shape[-1])).reshape(states.shape)
             return [self.predict(s) for s in states]
-        X = validate_data(self, X, reset=False)
+        X = self._validate_states(X)
         self._warn_outside(X)
         return self._vector_field(X)
+
+    def _validate_states(self, X):
+        """``validate_data(self, X, reset=False)``, short-cut for a plain finite float64 array.
+
+        For such an array (no feature names at fit) the validation returns
+        it unchanged; its generic path costs about ten times the prediction
+        of one state.
+        """
+        if (
+            type(X) is np.ndarray and X.dtype == np.float64 and X.ndim == 2
+            and X.shape[0] > 0 and X.shape[1] == self.n_features_in_
+            and not hasattr(self, "feature_names_in_") and np.isfinite(X).all()
+        ):
+            return X
+        return validate_data(self, X, reset=False)
 
     # ------------------------------------------------------------ simulation
     def _integrator(self, method=None):
