@@ -73,7 +73,7 @@ U0 = np.array([0.0, 0.0, np.pi / 6, np.pi / 4])
 FULL = dict(
     eval_degree=15, eval_M=3000, batch=1000, rk4_steps=10_000, avf_steps=500,
     fit_cases=[(10, 8000), (14, 8000)], cg_degree=10, cg_M=8000, iteration_cases=[14, 18],
-    iteration_M=500, samples_degree=8, samples=[1000, 2000, 4000, 8000, 16000],
+    iteration_M=1000, samples_degree=8, samples=[1000, 2000, 4000, 8000, 16000],
     terms_M=4000, terms=[4, 6, 8, 10, 12], repeats=3,
 )
 QUICK = dict(

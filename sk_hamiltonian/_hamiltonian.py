@@ -86,8 +86,9 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
         the design applied as an operator, preconditioned by the basis' Gram
         matrix under the uniform measure on the box (fast when the samples
         cover the box evenly). ``"auto"`` picks ``"lstsq"`` while the design
-        holds at most 5e7 entries, else ``"iterative"``, falling back to
-        ``"normal"`` if it does not converge. See :ref:`scaling`.
+        holds at most 5e7 entries, ``"normal"`` beyond, and ``"iterative"``
+        from 10 000 unknowns on (falling back to ``"normal"`` if it does not
+        converge). See :ref:`scaling`.
     verbose : int, default=0
         Print the progress of long fits (blocks accumulated, iterations and
         their residual) when positive; silent by default.
@@ -109,13 +110,16 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
     damping_ : ndarray of shape (n_dof,)
         Fitted friction coefficients ``gamma`` (zeros with ``damping=False``).
     cond_ : float
-        Condition number of the column-equilibrated least-squares design.
+        Condition number of the column-equilibrated least-squares design
+        (estimated with ``solver="iterative"`` and beyond 1 500 unknowns with
+        ``"normal"``).
     rank_ : int
         Numerical rank of that design.
     n_terms_ : int
         Number of fitted unknowns: ``n_basis``, plus ``n_dof`` with damping.
     solver_ : str
-        The solver used.
+        The solver used (``"normal"`` after :meth:`partial_fit` or a fit on
+        dask arrays).
     dt_ : float
         Median time step of the training trajectories (NaN when fitted on
         2-D states); the AVF step of a model fitted on steps.

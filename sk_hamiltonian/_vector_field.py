@@ -67,13 +67,16 @@ class VectorFieldRegressor(BaseTrajectoryRegressor):
     domain_ : ndarray of shape (n_states, 2)
         The box the basis lives on.
     cond_ : float
-        Condition number of the column-equilibrated design.
+        Condition number of the column-equilibrated least-squares design
+        (estimated with ``solver="iterative"`` and beyond 1 500 unknowns with
+        ``"normal"``).
     rank_ : int
         Numerical rank of that design.
     n_terms_ : int
         Number of fitted coefficients, ``coef_.size``.
     solver_ : str
-        The solver used.
+        The solver used (``"normal"`` after :meth:`partial_fit` or a fit on
+        dask arrays).
     dt_ : float
         Median time step of the training trajectories (NaN for 2-D input).
     time_scale_ : float
