@@ -46,7 +46,8 @@ def multistep_errors(model, Xt, n_steps=None, *, stride=1, substeps=ROLLOUT_SUBS
     stride : int, default=1
         Distance between starts, in samples.
     substeps : int, default=4
-        Integration steps per sampling interval.
+        Integration steps per sampling interval (per median interval, for
+        irregular time stamps).
 
     Returns
     -------
@@ -78,8 +79,11 @@ def multistep_errors(model, Xt, n_steps=None, *, stride=1, substeps=ROLLOUT_SUBS
         lengths = np.array([rel_times[i].shape[0] for i in members])
         # The longest member's time stamps; the others are its prefixes.
         grid = rel_times[members[int(np.argmax(lengths))]]
+        # `substeps` RK4 steps per typical interval (on a uniform grid, per
+        # interval): irregular stamps do not make every interval pay for the
+        # shortest one.
         max_step = (
-            np.min(np.diff(grid)) / substeps
+            np.median(np.diff(grid)) / substeps
             if integrator.name == "rk4"
             else model._default_step(integrator.name)
         )
