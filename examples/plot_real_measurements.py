@@ -163,7 +163,8 @@ for label, model in models.items():
     predictions[label] = Y
     scaled = (Y - test[:, 1:]) / damped[-1].state_scale_
     errors[label] = float(np.sqrt(np.mean(scaled**2)))
-    print(f"  {label:15s} held-out error {errors[label]:.4f} (score {model.score(test[None]):.4f})")
+    score = model.score(test[None])
+    print(f"  {label:15s} held-out error {errors[label]:.4f} (score {score:.4f})")
 
 # %%
 # Figure

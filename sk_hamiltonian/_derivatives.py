@@ -346,8 +346,8 @@ class DerivativeTransformer(TransformerMixin, BaseEstimator):
                 i = int(np.flatnonzero(steps <= 0)[0])
                 raise ValueError(
                     f"X[{k}]: the time stamps (first column, as dt=None) must be strictly "
-                    f"increasing; sample {i + 1} has t={float(t[i + 1])!r} after t={float(t[i])!r}. "
-                    f"Sort the samples and drop repeated times."
+                    f"increasing; sample {i + 1} has t={float(t[i + 1])!r} after "
+                    f"t={float(t[i])!r}. Sort the samples and drop repeated times."
                 )
         return times, [T[:, 1:] for T in trajectories]
 
