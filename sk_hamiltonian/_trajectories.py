@@ -86,11 +86,12 @@ def check_trajectories(X, *, name="X", min_times=1):
             f"The trajectories in {name} have different numbers of features "
             f"{sorted(widths)}; all must have the same."
         )
-    shortest = min(T.shape[0] for T in trajectories)
-    if shortest < min_times:
+    lengths = [T.shape[0] for T in trajectories]
+    shortest = int(np.argmin(lengths))
+    if lengths[shortest] < min_times:
+        which = f"{name}[{shortest}]" if not is_array else f"Every trajectory in {name}"
         raise ValueError(
-            f"A trajectory in {name} has {shortest} sample(s); at least {min_times} "
-            f"are required."
+            f"{which} has {lengths[shortest]} sample(s); at least {min_times} are required."
         )
     for k, T in enumerate(trajectories):
         if not np.isfinite(T).all():
