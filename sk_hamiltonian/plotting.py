@@ -281,13 +281,14 @@ def plot_states(t, trajectories, *, state_names=None, n_markers=120, axes=None):
     curves = _check_curves(trajectories, t.shape[0], "trajectories")
     n_states = next(iter(curves.values())).shape[1]
     names = _state_names(n_states, state_names)
-    if isinstance(n_markers, bool) or not isinstance(n_markers, (int, np.integer)) or n_markers < 0:
+    if (isinstance(n_markers, bool) or not isinstance(n_markers, (int, np.integer))
+            or n_markers < 0):
         raise ValueError(f"n_markers must be a non-negative integer; got {n_markers!r}.")
     if axes is None:
         import matplotlib.pyplot as plt
 
         d = max(1, n_states // 2)
-        _, grid = plt.subplots(2, d, figsize=(4.8 * d + 0.5, 5.5), squeeze=False)
+        _, grid = plt.subplots(2, d, figsize=(max(9.0, 4.8 * d), 5.5), squeeze=False)
         # Row 0 holds p_1..p_d and row 1 q_1..q_d, matching the state order.
         axes = grid.ravel()
     axes = np.asarray(axes, dtype=object).ravel()
