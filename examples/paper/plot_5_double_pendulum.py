@@ -93,7 +93,8 @@ for degree, n_trajectories in RUNS:
     errors[label] = relative_error(trajectories[label], u)
     row = {f"T={T:g}": float(errors[label][round(T / PAPER_DT)]) for T in (5.0, 10.0, 20.0)}
     row.update(mean=float(np.mean(errors[label])), n_terms=model.n_terms_, cond=model.cond_)
-    print(f"{label}: " + ", ".join(f"{key} {value:.3g}" for key, value in row.items()))
+    print(f"{label}: " + ", ".join(f"{key} {value:.3g}" for key, value in row.items()
+                                   if key != "n_terms") + f", {model.n_terms_} terms")
     # Saved after every run, so that an interrupted long run keeps its numbers.
     results["runs"][label] = row
     (FIGURES / "ex5_double_pendulum.json").write_text(json.dumps(results, indent=2))
