@@ -373,7 +373,8 @@ def hamiltonian_offset(model, hamiltonian, domain=None, *, n_samples=20_000, ran
     >>> from sk_hamiltonian.datasets import make_trajectories, henon_heiles
     >>> from sk_hamiltonian.metrics import hamiltonian_offset
     >>> system = henon_heiles()
-    >>> X = make_trajectories(system, 200, 2, dt=0.01, random_state=0)
+    >>> X = make_trajectories(system, 200, 2, dt=0.01, domain=[[-0.9, 0.9]] * 4,
+    ...                       random_state=0)
     >>> Xt = DerivativeTransformer(dt=0.01, method="finite_difference").fit_transform(X)
     >>> model = HamiltonianRegressor(degree=3, domain=system.domain).fit(Xt)
     >>> C = hamiltonian_offset(model, system.hamiltonian)
