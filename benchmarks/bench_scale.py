@@ -57,6 +57,7 @@ import matplotlib  # noqa: E402
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
+import matplotlib.ticker  # noqa: E402
 import numpy as np  # noqa: E402
 from threadpoolctl import threadpool_info, threadpool_limits  # noqa: E402
 
@@ -278,30 +279,41 @@ def scaling(cfg, rows, output):
         writer = csv.DictWriter(handle, ["sweep", "degree", "M", "n_rows", "n_terms", "seconds"])
         writer.writeheader()
         writer.writerows(records)
+    for sweep, slope, n in plot_scaling(records, output):
+        row(rows, "scaling", f"log-log slope of fit time against {sweep}", slope, "slope", None,
+            f"{n} fits, slope over the larger half; expected about 1 in samples, "
+            f"2 in terms (the Gram matrix)")
+
+
+def plot_scaling(records, output):
+    """Log-log charts of the scaling sweeps with their fitted slopes; returns the slopes."""
     fig, axes = plt.subplots(1, 2, figsize=(10, 4))
+    slopes = []
     for ax, sweep, key, label in (
         (axes[0], "samples", "n_rows", "equations (4 per state)"),
         (axes[1], "terms", "n_terms", "terms (unknowns)"),
     ):
         part = [r for r in records if r["sweep"] == sweep]
-        x = np.array([r[key] for r in part], dtype=float)
-        y = np.array([r["seconds"] for r in part])
+        x = np.array([float(r[key]) for r in part])
+        y = np.array([float(r["seconds"]) for r in part])
         # Fit the slope on the larger half: small fits are dominated by overheads.
         tail = slice(len(x) // 2, None) if len(x) > 3 else slice(None)
-        slope = np.polyfit(np.log(x[tail]), np.log(y[tail]), 1)[0]
-        ax.loglog(x, y, "o-", label=f"fit time, slope {slope:.2f}")
+        slope, intercept = np.polyfit(np.log(x[tail]), np.log(y[tail]), 1)
+        ax.loglog(x, y, "o", label="fit time")
+        ax.loglog(x[tail], np.exp(intercept) * x[tail] ** slope, "-",
+                  label=f"slope {slope:.2f} (larger half)")
+        ax.xaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
         ax.set_xlabel(label)
         ax.set_ylabel("seconds")
         ax.grid(True, which="both", alpha=0.3)
         ax.legend()
-        what = (f"degree {cfg['samples_degree']}" if sweep == "samples"
-                else f"M = {cfg['terms_M']}")
-        ax.set_title(f"Fit time against {sweep} ({what}, solver normal)")
-        row(rows, "scaling", f"log-log slope of fit time against {sweep}", slope, "slope", None,
-            f"{len(x)} fits; theory: 1 in samples, about 2 in terms (Gram matrix)")
+        fixed = (f"degree {part[0]['degree']}" if sweep == "samples" else f"M = {part[0]['M']}")
+        ax.set_title(f"Fit time against {sweep} ({fixed}, solver normal)")
+        slopes.append((sweep, float(slope), len(x)))
     fig.tight_layout()
     fig.savefig(output / "scale.png", dpi=110)
     plt.close(fig)
+    return slopes
 
 
 def paper_n18(output):
