@@ -57,6 +57,7 @@ import matplotlib  # noqa: E402
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
+import matplotlib.ticker  # noqa: E402
 import numpy as np  # noqa: E402
 from threadpoolctl import threadpool_info, threadpool_limits  # noqa: E402
 
@@ -74,7 +75,7 @@ FULL = dict(
     eval_degree=15, eval_M=3000, batch=1000, rk4_steps=10_000, avf_steps=500,
     fit_cases=[(10, 8000), (14, 8000)], cg_degree=10, cg_M=8000, iteration_cases=[14, 18],
     iteration_M=1000, samples_degree=8, samples=[1000, 2000, 4000, 8000, 16000],
-    terms_M=4000, terms=[4, 6, 8, 10, 12], repeats=3,
+    terms_M=4000, terms=[4, 6, 8, 10, 12, 14], repeats=3,
 )
 QUICK = dict(
     eval_degree=8, eval_M=400, batch=200, rk4_steps=300, avf_steps=50,
@@ -120,15 +121,25 @@ def layout(M, seed=0):
     return DerivativeTransformer(dt=DT, method="finite_difference").fit_transform(X)
 
 
-def best(f, repeats, number=1):
-    """Best over ``repeats`` of the mean wall time of ``number`` calls."""
+def best(f, repeats, number=1, clock=time.perf_counter):
+    """Best over ``repeats`` of the mean time of ``number`` calls (wall clock by default)."""
     times = []
     for _ in range(repeats):
-        start = time.perf_counter()
+        start = clock()
         for _ in range(number):
             f()
-        times.append((time.perf_counter() - start) / number)
+        times.append((clock() - start) / number)
     return min(times)
+
+
+def both(f, repeats, number=1):
+    """(CPU seconds of this thread, wall seconds), each the best of ``repeats``.
+
+    On a shared machine the wall clock also counts the time spent waiting
+    for a core; the thread's CPU time is the work done, which is what an
+    idle machine would take.
+    """
+    return best(f, repeats, number, time.thread_time), best(f, repeats, number)
 
 
 def fit(Xt, degree, **params):
@@ -161,30 +172,34 @@ def evaluation(cfg, rows):
     space = model._space
     u = U0[None]
     batch = np.random.default_rng(1).uniform(*SYSTEM.domain.T, size=(cfg["batch"], 4))
-    one = best(lambda: model.predict(u), 5, 200)
-    many = best(lambda: model.predict(batch), cfg["repeats"]) / cfg["batch"]
+    one = both(lambda: model.predict(u), 5, 200)
+    many = [x / cfg["batch"] for x in both(lambda: model.predict(batch), cfg["repeats"])]
 
     def explicit():
         grad = space.gradients(batch) @ model.coef_
         return np.concatenate([-grad[:, 2:], grad[:, :2]], axis=1)
 
     assert np.allclose(explicit(), model.predict(batch), rtol=1e-10, atol=1e-10)
-    reference = best(explicit, cfg["repeats"]) / cfg["batch"]
-    note = f"{space.n_terms} terms"
-    row(rows, "evaluation", "predict, one state", one * 1e6, "us", 50, note)
-    row(rows, "evaluation", "predict, batch (per state)", many * 1e6, "us", 5, note)
-    row(rows, "evaluation", "explicit products, batch (per state; old path)", reference * 1e6,
-        "us", None, "gradients of every function, then a matrix product")
+    reference = [x / cfg["batch"] for x in both(explicit, cfg["repeats"])]
+    note = f"{space.n_terms} terms; CPU time (wall {{:.4g}})"
+    row(rows, "evaluation", "predict, one state", one[0] * 1e6, "us", 50,
+        note.format(one[1] * 1e6))
+    row(rows, "evaluation", "predict, batch (per state)", many[0] * 1e6, "us", 5,
+        note.format(many[1] * 1e6))
+    row(rows, "evaluation", "explicit products, batch (per state; old path)",
+        reference[0] * 1e6, "us", None,
+        "gradients of every function, then a matrix product; " + note.format(reference[1] * 1e6))
     n = cfg["rk4_steps"]
     t = np.linspace(0, n * DT, n + 1)
-    rk4 = best(lambda: model.simulate(U0, t, method="rk4", max_step=np.inf), 1)
+    rk4 = both(lambda: model.simulate(U0, t, method="rk4", max_step=np.inf), 1)
     n_avf = cfg["avf_steps"]
     t_avf = np.linspace(0, n_avf * DT, n_avf + 1)
-    avf = best(lambda: model.simulate(U0, t_avf, method="avf", max_step=np.inf), 1)
-    row(rows, "simulation", f"{n} RK4 steps from u0*", rk4 * 10_000 / n, "s per 1e4",
-        2.0, f"measured over {n} steps")
-    row(rows, "simulation", "one AVF step, in RK4 steps", (avf / n_avf) / (rk4 / n),
-        "RK4 steps", 3.0, f"step {DT}, {n_avf} AVF steps")
+    avf = both(lambda: model.simulate(U0, t_avf, method="avf", max_step=np.inf), 1)
+    row(rows, "simulation", f"{n} RK4 steps from u0*", rk4[0] * 10_000 / n, "s per 1e4",
+        2.0, f"CPU time (wall {rk4[1] * 10_000 / n:.3g}); measured over {n} steps")
+    row(rows, "simulation", "one AVF step, in RK4 steps", (avf[0] / n_avf) / (rk4[0] / n),
+        "RK4 steps", 3.0,
+        f"CPU time (wall {(avf[1] / n_avf) / (rk4[1] / n):.3g}); step {DT}, {n_avf} AVF steps")
 
 
 def fits(cfg, rows):
@@ -249,12 +264,14 @@ def scaling(cfg, rows, output):
     records = []
     for M in cfg["samples"]:
         Xt = layout(M)
-        seconds = best(lambda: fit(Xt, cfg["samples_degree"]), 1)
+        # One solver for the whole sweep ("auto" switches from lstsq to
+        # normal at 5e7 design entries, which would break the power law).
+        seconds = best(lambda: fit(Xt, cfg["samples_degree"], solver="normal"), 1)
         records.append(dict(sweep="samples", degree=cfg["samples_degree"], M=M,
                             n_rows=Xt.shape[0] * Xt.shape[1] * 4, seconds=seconds))
     Xt = layout(cfg["terms_M"])
     for degree in cfg["terms"]:
-        seconds = best(lambda: fit(Xt, degree), 1)
+        seconds = best(lambda: fit(Xt, degree, solver="normal"), 1)
         n_terms = HamiltonianRegressor(degree=degree)._n_terms(4)
         records.append(dict(sweep="terms", degree=degree, M=cfg["terms_M"],
                             n_rows=Xt.shape[0] * Xt.shape[1] * 4, n_terms=n_terms, seconds=seconds))
@@ -262,30 +279,41 @@ def scaling(cfg, rows, output):
         writer = csv.DictWriter(handle, ["sweep", "degree", "M", "n_rows", "n_terms", "seconds"])
         writer.writeheader()
         writer.writerows(records)
+    for sweep, slope, n in plot_scaling(records, output):
+        row(rows, "scaling", f"log-log slope of fit time against {sweep}", slope, "slope", None,
+            f"{n} fits, slope over the larger half; expected about 1 in samples, "
+            f"2 in terms (the Gram matrix)")
+
+
+def plot_scaling(records, output):
+    """Log-log charts of the scaling sweeps with their fitted slopes; returns the slopes."""
     fig, axes = plt.subplots(1, 2, figsize=(10, 4))
+    slopes = []
     for ax, sweep, key, label in (
         (axes[0], "samples", "n_rows", "equations (4 per state)"),
         (axes[1], "terms", "n_terms", "terms (unknowns)"),
     ):
         part = [r for r in records if r["sweep"] == sweep]
-        x = np.array([r[key] for r in part], dtype=float)
-        y = np.array([r["seconds"] for r in part])
+        x = np.array([float(r[key]) for r in part])
+        y = np.array([float(r["seconds"]) for r in part])
         # Fit the slope on the larger half: small fits are dominated by overheads.
         tail = slice(len(x) // 2, None) if len(x) > 3 else slice(None)
-        slope = np.polyfit(np.log(x[tail]), np.log(y[tail]), 1)[0]
-        ax.loglog(x, y, "o-", label=f"fit time, slope {slope:.2f}")
+        slope, intercept = np.polyfit(np.log(x[tail]), np.log(y[tail]), 1)
+        ax.loglog(x, y, "o", label="fit time")
+        ax.loglog(x[tail], np.exp(intercept) * x[tail] ** slope, "-",
+                  label=f"slope {slope:.2f} (larger half)")
+        ax.xaxis.set_minor_formatter(matplotlib.ticker.NullFormatter())
         ax.set_xlabel(label)
         ax.set_ylabel("seconds")
         ax.grid(True, which="both", alpha=0.3)
         ax.legend()
-        what = (f"degree {cfg['samples_degree']}" if sweep == "samples"
-                else f"M = {cfg['terms_M']}")
-        ax.set_title(f"Fit time against {sweep} ({what})")
-        row(rows, "scaling", f"log-log slope of fit time against {sweep}", slope, "slope", None,
-            f"{len(x)} fits; theory: 1 in samples, about 2 in terms (Gram matrix)")
+        fixed = (f"degree {part[0]['degree']}" if sweep == "samples" else f"M = {part[0]['M']}")
+        ax.set_title(f"Fit time against {sweep} ({fixed}, solver normal)")
+        slopes.append((sweep, float(slope), len(x)))
     fig.tight_layout()
     fig.savefig(output / "scale.png", dpi=110)
     plt.close(fig)
+    return slopes
 
 
 def paper_n18(output):

@@ -28,7 +28,8 @@ de-noised states of the same transformer: the steps fit uses those states.
 Run::
 
     python benchmarks/steps_study.py            # all examples (~30 min on 2 cores)
-    python benchmarks/steps_study.py --quick    # Examples 2-4 and 1 at one degree, M / 4 for Ex. 5
+    python benchmarks/steps_study.py --quick    # two degrees each, n = 8 for Ex. 1, M = 5 000 for Ex. 5
+    python benchmarks/steps_study.py --examples exponential noisy   # a subset
 
 Prints a table and writes ``benchmarks/results/steps_study.csv``.
 """
@@ -142,17 +143,27 @@ def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--quick", action="store_true", help="fewer degrees, smaller Example 5")
     parser.add_argument("--output", default=str(Path(__file__).parent / "results"))
+    parser.add_argument("--examples", nargs="+", default=[*CLEAN, "noisy"],
+                        choices=[*CLEAN, "noisy"], help="which examples to run (default: all)")
+    parser.add_argument("--dp-trajectories", type=int, default=None, metavar="M",
+                        help="trajectories of the double pendulum (default: the paper's "
+                        "20 000; 5 000 with --quick)")
     args = parser.parse_args(argv)
     rows = []
     for name, degrees in CLEAN.items():
+        if name not in args.examples:
+            continue
         if args.quick:
             degrees = degrees[:2]
-        M = 5000 if args.quick and name == "double_pendulum" else None
+        M = None
+        if name == "double_pendulum":
+            M = args.dp_trajectories or (5000 if args.quick else None)
         rows += run_example(name, degrees, n_trajectories=M)
     # The example's own function would refit with M=500 at the paper's domain;
     # here the domain is the bounding box of the data, as the command does.
-    rows += [dict(r, example="single_pendulum (noisy)") for r in noisy_pendulum(
-        [8] if args.quick else [8, 10])]
+    if "noisy" in args.examples:
+        rows += [dict(r, example="single_pendulum (noisy)") for r in noisy_pendulum(
+            [8] if args.quick else [8, 10])]
     print("\nEach method at its best degree:")
     print(best_table(rows))
     Path(args.output).mkdir(parents=True, exist_ok=True)

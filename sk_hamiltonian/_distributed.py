@@ -95,6 +95,8 @@ def fit_distributed(estimator, X, y=None, sample_weight=None):
     import dask
     import dask.array as da
 
+    # A fit starts over: no earlier partial_fit state travels to the workers.
+    estimator._partial = None
     X = da.asarray(X)
     layout = y is None
     if layout:
@@ -181,6 +183,5 @@ def fit_distributed(estimator, X, y=None, sample_weight=None):
 
         return refine
 
-    estimator._partial = None
     estimator._solve_accumulated(state, data, residual)
     return estimator

@@ -35,8 +35,12 @@ def outside_domain(X, domain, periodic, slack=0.0):
     """
     low, high = domain[:, 0], domain[:, 1]
     margin = slack * (high - low)
-    out = (X < low - margin) | (X > high + margin)
-    return np.any(out[:, ~np.asarray(periodic, dtype=bool)], axis=1)
+    # Periodic variables get infinite bounds: no column selection (which
+    # costs more than the comparisons for the one state of a prediction).
+    periodic = np.asarray(periodic, dtype=bool)
+    below = np.where(periodic, -np.inf, low - margin)
+    above = np.where(periodic, np.inf, high + margin)
+    return ((X < below) | (X > above)).any(axis=1)
 
 
 class ModelSpace:
@@ -114,27 +118,6 @@ class ModelSpace:
     def outside(self, X, slack=0.0):
         """Rows of ``X`` with a non-periodic variable outside its interval."""
         return outside_domain(X, self.domain, self.periodic, slack)
-
-    def tables(self, X, n_derivatives=1):
-        """1-D tables of every variable, derivatives already in ``X``'s coordinates.
-
-        Parameters
-        ----------
-        X : ndarray of shape (n_samples, n_states)
-            Points.
-        n_derivatives : {0, 1, 2}, default=1
-            Derivative orders to tabulate beyond the values.
-
-        Returns
-        -------
-        tables : list of ndarray of shape (n_samples, n_states + 1, width)
-            ``tables[r][s, i, c]``: ``r``-th derivative of column ``c`` of
-            variable ``i``'s family at sample ``s``; row ``n_states`` is the
-            dummy variable of the slot layout (``1``, derivatives ``0``).
-            Views of the kernels' layout (see :mod:`.tables`).
-        """
-        X = np.asarray(X, dtype=float)
-        return list(np.moveaxis(self.factor_tables(X, n_derivatives), -1, 1))
 
     # ------------------------------------------------------------ evaluation
     # The kernels work terms-major (samples last); these methods return the

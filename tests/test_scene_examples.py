@@ -1,0 +1,134 @@
+"""The scene examples run on their own and show what their model spaces are for.
+
+Each example of ``examples/scenes/`` runs in quick mode as a subprocess, as
+``python examples/scenes/plot_*.py`` would, writing its figures and a JSON file
+of measured numbers into a temporary directory; the tests then check the files
+and the claims the example makes. Both run concurrently in one fixture (about
+40 s of CPU time each).
+"""
+
+import json
+import math
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+pytest.importorskip("matplotlib")
+
+ROOT = Path(__file__).resolve().parents[1]
+SCENES = ROOT / "examples" / "scenes"
+EXAMPLES = {
+    "plot_angles_double_pendulum": ("angles_double_pendulum",
+                                    ["angles_error_vs_terms", "angles_rollouts"]),
+    "plot_lattice_fput": ("lattice_fput", ["lattice_rollouts", "lattice_energy"]),
+}
+
+
+@pytest.fixture(scope="module")
+def runs(tmp_path_factory):
+    figures = tmp_path_factory.mktemp("scene_figures")
+    env = dict(os.environ, SK_HAMILTONIAN_QUICK="1", SK_HAMILTONIAN_FIGURES=str(figures),
+               MPLBACKEND="Agg")
+    env["PYTHONPATH"] = os.pathsep.join(
+        [str(ROOT)] + ([env["PYTHONPATH"]] if env.get("PYTHONPATH") else []))
+    # Two examples side by side on few cores: one BLAS thread each.
+    for var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+        env[var] = "1"
+    processes = {
+        name: subprocess.Popen([sys.executable, str(SCENES / f"{name}.py")], cwd=SCENES,
+                               env=env, stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
+                               text=True)
+        for name in EXAMPLES
+    }
+    outputs = {}
+    for name, process in processes.items():
+        try:
+            # Generous: a loaded machine can stretch 40 s of CPU into minutes.
+            outputs[name], _ = process.communicate(timeout=900)
+        except subprocess.TimeoutExpired:
+            process.kill()
+            outputs[name], _ = process.communicate()
+            pytest.fail(f"{name} did not finish:\n{outputs[name]}")
+        assert process.returncode == 0, f"{name} failed:\n{outputs[name]}"
+    results = {name: json.loads((figures / f"{stem}.json").read_text())
+               for name, (stem, _) in EXAMPLES.items()}
+    return figures, outputs, results
+
+
+@pytest.mark.parametrize("name", sorted(EXAMPLES))
+def test_scene_example_writes_its_figures(runs, name):
+    figures, outputs, results = runs
+    for figure in EXAMPLES[name][1]:
+        path = figures / f"{figure}.png"
+        assert path.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n", (figure, outputs[name])
+    assert results[name]["quick_mode"] is True
+
+
+def test_angles_fourier_mechanical_beats_total_degree_per_term(runs):
+    spaces = runs[2]["plot_angles_double_pendulum"]["spaces"]
+    fourier, total = spaces["Fourier-mechanical"], spaces["total degree"]
+    for row in total:
+        # The Fourier-mechanical model nearest in size to this total-degree one.
+        nearest = min(fourier, key=lambda r: abs(math.log(r["n_terms"] / row["n_terms"])))
+        assert nearest["h_error"] < row["h_error"] / 2, (nearest, row)
+    # Its best is more than ten times better than the best total-degree model.
+    assert min(r["h_error"] for r in fourier) < min(r["h_error"] for r in total) / 10
+    # Errors fall with the number of terms in the Fourier-mechanical space.
+    errors = [r["h_error"] for r in sorted(fourier, key=lambda r: r["n_terms"])]
+    assert errors == sorted(errors, reverse=True), errors
+    # Trigonometric columns stay well conditioned.
+    assert all(r["cond"] < 10 for r in fourier)
+
+
+def test_angles_learned_hamiltonian_reads_like_the_true_one(runs):
+    best = runs[2]["plot_angles_double_pendulum"]["best"]
+    assert best["space"] == "Fourier-mechanical"
+    # The potential -2 cos q1 - cos q2 is in the space exactly; the kinetic
+    # means 1/(2 sqrt 2) and 1/sqrt 2 are truncation-limited. Quick mode
+    # measured 1e-4 to 2e-4 relative on each.
+    for name, exact in best["exact_terms"].items():
+        assert best["terms"][name] == pytest.approx(exact, rel=2e-3), name
+
+
+def test_angles_mechanical_models_extrapolate_in_the_momenta(runs):
+    spaces = runs[2]["plot_angles_double_pendulum"]["spaces"]
+    # The orbit from u0* leaves the momentum box of the data. The largest
+    # Fourier-mechanical model follows it; the largest total-degree one does
+    # not (measured in quick mode: 6e-2 against a failed rollout).
+    assert spaces["Fourier-mechanical"][-1]["rollout_error"] < 0.2
+    assert spaces["total degree"][-1]["rollout_error"] > 0.5
+
+
+def test_lattice_pairwise_model_follows_the_chain(runs):
+    result = runs[2]["plot_lattice_fput"]
+    pairwise = result["models"]["pairwise separable, degree 4"]
+    assert pairwise["n_terms"] == 400
+    errors = {method: r["max_error"] for method, r in pairwise["rollouts"].items()}
+    assert set(errors) == {"leapfrog", "yoshida4", "rk4"}
+    # Measured 1.9e-4 for each: the model's error, not the integrator's.
+    assert all(e < 1e-3 for e in errors.values()), errors
+    assert max(errors.values()) < 1.1 * min(errors.values()), errors
+    # Total degree 3 has more terms and cannot hold the quartic bonds.
+    total = result["models"]["total degree 3"]
+    assert total["n_terms"] > pairwise["n_terms"]
+    assert total["rollouts"]["rk4"]["max_error"] > 100 * max(errors.values())
+
+
+def test_lattice_leapfrog_energy_error_is_bounded(runs):
+    energy = runs[2]["plot_lattice_fput"]["long_run"]["energy"]
+    leapfrog = energy["leapfrog"]
+    # Bounded oscillation: no growth from the first tenth of the run to the last.
+    assert 0 < leapfrog["last_tenth"] < 1.5 * leapfrog["first_tenth"]
+    # RK4's error is smaller at this step but grows (measured 13x over T = 200).
+    assert energy["rk4"]["last_tenth"] > 3 * energy["rk4"]["first_tenth"]
+
+
+def test_lattice_large_chain(runs):
+    large = runs[2]["plot_lattice_fput"]["large"]
+    assert large["n_particles"] == 16
+    # 1 568 terms against 58 904 for total degree 4 in 32 variables.
+    assert large["n_terms"] == 1568 and large["total_degree_terms"] == 58904
+    assert large["max_error"] < 1e-2
