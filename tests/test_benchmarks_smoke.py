@@ -80,8 +80,10 @@ def test_speed_accuracy_quick(runs):
     assert columns == SPEED_COLUMNS
     assert not any(r["method"].startswith("PySINDy") for r in rows)
     sp = [r for r in rows if r["method"].startswith("SP-")]
-    assert {r["method"] for r in sp} == {"SP-RK4", "SP-AVF"}
-    assert len({r["scene"] for r in sp}) >= 2
+    # Leapfrog only for the separable scene (the FPUT chain).
+    assert {r["method"] for r in sp} == {"SP-RK4", "SP-AVF", "SP-LEAPFROG"}
+    assert {r["scene"] for r in sp if r["method"] == "SP-LEAPFROG"} == {"FPUT chain 4"}
+    assert len({r["scene"] for r in sp}) >= 3
     for r in sp:
         assert _finite(r, "cond", "fit_s", "sim_s", "total_s", "err_T10", "err_T20",
                        "fresh_err_T20", "energy_drift", "model_energy_drift"), r
