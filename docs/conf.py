@@ -88,9 +88,16 @@ intersphinx_mapping = {
     "matplotlib": ("https://matplotlib.org/stable/", f"{_INVENTORIES}/matplotlib.inv"),
 }
 
+# One gallery in sections: the scripts directly in examples/ (getting started),
+# then one section per subfolder that has a GALLERY_HEADER.rst, in alphabetical
+# order: paper/ (the paper's examples), scenes/ (model spaces for other
+# scenes). A section without scripts shows its header only. Each script writes
+# its figures to a figures/ folder next to itself (results.rst includes them).
+# The paths are relative to this directory: sphinx-gallery writes them into the
+# toctree of the sections, where absolute paths do not resolve.
 sphinx_gallery_conf = {
-    "examples_dirs": str(DOCS.parent / "examples"),
-    "gallery_dirs": str(DOCS / "auto_examples"),
+    "examples_dirs": "../examples",
+    "gallery_dirs": "auto_examples",
     "filename_pattern": r"/plot_",
     "ignore_pattern": r"/_",
     "within_subsection_order": "FileNameSortKey",

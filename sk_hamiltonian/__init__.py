@@ -13,6 +13,7 @@ from .exceptions import (
     DomainWarning,
     IllConditionedWarning,
     SimulationError,
+    SmoothingWarning,
 )
 
 __version__ = "0.1.0"
@@ -24,6 +25,7 @@ __all__ = [
     "HamiltonianRegressor",
     "IllConditionedWarning",
     "SimulationError",
+    "SmoothingWarning",
     "VectorFieldRegressor",
     "unpack_derivatives",
 ]

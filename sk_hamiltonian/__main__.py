@@ -4,21 +4,24 @@ Run ``sk-hamiltonian --help`` (or ``python -m sk_hamiltonian --help``).
 """
 
 import argparse
+import math
 import os
 import sys
+import tempfile
 import time
 import warnings
 
 import numpy as np
-from sklearn.model_selection import GridSearchCV, KFold
+from sklearn.model_selection import GridSearchCV, GroupKFold, KFold
 from sklearn.pipeline import make_pipeline
 
-from . import DerivativeTransformer, HamiltonianRegressor, VectorFieldRegressor
+from . import DerivativeTransformer, DomainWarning, HamiltonianRegressor, VectorFieldRegressor
+from ._datafiles import load_trajectories
 from ._integrate import integrate
-from ._report import UsageError, draw_report, load_trajectories
+from ._report import UsageError, describe_energy_trend, draw_report
 from .datasets import PAPER_DT, make_trajectories, single_pendulum
 from .inspection import format_hamiltonian
-from .model_selection import count_terms, one_standard_error_rule
+from .model_selection import count_terms, one_standard_error_rule, segment_trajectories
 
 EXAMPLE = dict(n_trajectories=500, n_intervals=40, noise=0.08, horizon=20.0)
 QUICK = dict(n_trajectories=60, n_intervals=40, noise=0.08, horizon=5.0)
@@ -26,6 +29,12 @@ DEFAULT_DENOISE, DEFAULT_DEGREES = ["fd", "3", "5", "8"], [4, 6, 8, 10]
 QUICK_DENOISE, QUICK_DEGREES = ["fd", "5"], [4, 6]
 Q_KEY, N_KEY = "derivativetransformer__degree", "hamiltonianregressor__degree"
 METHOD_KEY = "derivativetransformer__method"
+# Fewest samples a trajectory needs for any derivative estimate.
+MIN_SAMPLES = 3
+# Segments of a record too long to cross-validate whole: the paper's
+# trajectory length (one de-noising polynomial each with the default window),
+# shortened so that every fold gets at least two segments.
+SEGMENT_SAMPLES = 41
 
 DESCRIPTION = """\
 Learn a Hamiltonian system from trajectory data (Wu, Qin & Xiu), choosing the
@@ -37,24 +46,35 @@ Without DATA, runs the paper's Example 1 in-process: the single pendulum,
 The search is a GridSearchCV over (Q, n) whose folds hold out whole
 trajectories; each candidate is scored by rolling it out from every held-out
 trajectory's first observation and comparing with the observations (the
-default score). The refit picks the candidate with the fewest terms whose
-mean score is within one standard error of the best. The report gives the
-chosen degrees, the number of terms, the leading terms of the learned H~,
-the fit time, the H~ drift along a simulated trajectory (RK4 and the
-energy-conserving averaged vector field) and, for the built-in example, the
-relative error at T against the true system of the structure-preserving
-model (SP) and of the component-wise baseline (non-SP, same degrees).
+default score). With fewer trajectories than folds (e.g. one long record),
+the trajectories are cut into contiguous segments and each fold holds out one
+contiguous stretch of them (blocked cross-validation). The refit picks the
+candidate with the fewest terms whose mean score is within one standard
+error of the best. The report gives the chosen degrees, the number of terms,
+the leading terms of the learned H~, the fit time, the trend of H~ along the
+data (a conservation check), the H~ drift along a simulated trajectory (RK4
+and the energy-conserving averaged vector field) and, for the built-in
+example, the relative error at T against the true system of the
+structure-preserving model (SP) and of the component-wise baseline (non-SP,
+same degrees).
 """
 
 EPILOG = """\
 data files:
   .npz  an array of shape (n_trajectories, n_times, 2d) under the key
-        'trajectories' (or the only array in the file); state order
-        p_1..p_d, q_1..q_d; sampled every --dt.
+        'trajectories' (or the only array in the file besides 'times'); state
+        order p_1..p_d, q_1..q_d; sampled every --dt. Time stamps instead of
+        --dt: an array 'times' of shape (n_trajectories, n_times), or the
+        time as the first column of the trajectories (then 1 + 2d columns).
   .csv  a header line 'trajectory,<p_1>,..,<p_d>,<q_1>,..,<q_d>', then one row
         per sample: the trajectory id, then the states. The rows of each
         trajectory are contiguous and in time order, sampled every --dt;
         lengths may differ. The header names are used in the report.
+        Time stamps instead of --dt: a column named 't' or 'time' right
+        after 'trajectory' ('trajectory,t,<p_1>,..').
+  Time stamps may have any spacing (strictly increasing per trajectory);
+  with them, --dt is not needed. Trajectories with fewer than 3 samples are
+  dropped, with a note naming them.
 
 outputs (in --output, default ./sk_hamiltonian_output):
   report.png    trajectories, phase plot, errors or energy, H~ drift
@@ -68,6 +88,7 @@ examples:
   sk-hamiltonian
   sk-hamiltonian runs.npz --dt 0.05 --degrees 3 4 5 --output results
   python -m sk_hamiltonian runs.csv --dt 0.1 --denoise-degrees fd 4 6
+  sk-hamiltonian record_with_times.csv --segment-length 60
 """
 
 
@@ -83,8 +104,8 @@ def build_parser():
     )
     parser.add_argument(
         "--dt", type=float, metavar="DT",
-        help="sampling step of DATA (required with DATA; the built-in example uses "
-        "0.01 unless given)",
+        help="sampling step of DATA (required with DATA unless it carries time stamps; "
+        "the built-in example uses 0.01 unless given)",
     )
     parser.add_argument(
         "--output", default="sk_hamiltonian_output", metavar="DIR",
@@ -106,9 +127,14 @@ def build_parser():
         help="number of cross-validation folds of whole trajectories (default: %(default)s)",
     )
     parser.add_argument(
+        "--segment-length", type=int, metavar="S",
+        help="with fewer trajectories than folds, cut them into segments of S samples "
+        f"(default: {SEGMENT_SAMPLES}, fewer if the folds need it)",
+    )
+    parser.add_argument(
         "--horizon", type=float, metavar="T",
         help="simulated time span of the report (default: 20 for the example, "
-        "10 trajectory lengths for DATA)",
+        "10 times the median trajectory duration for DATA)",
     )
     parser.add_argument(
         "--seed", type=int, default=0,
@@ -142,23 +168,15 @@ def main(argv=None):
 
 
 def _run(args):
-    X, dt, names, title, system, horizon = _load(args)
-    horizon = args.horizon if args.horizon is not None else horizon
-    if not horizon > 0:
-        raise UsageError(f"--horizon must be positive; got {horizon}")
-    if args.cv < 2:
-        raise UsageError(f"--cv must be at least 2; got {args.cv}")
-    if len(X) < args.cv:
-        raise UsageError(
-            f"{len(X)} trajectories cannot fill {args.cv} folds: give more trajectories "
-            f"or a lower --cv"
-        )
-    try:
-        os.makedirs(args.output, exist_ok=True)
-    except OSError as error:
-        raise UsageError(f"cannot create the output directory {args.output}: {error}") from None
-    print(f"data: {title}")
-    search, fit_time, warned = _search(args, X, dt, len(names))
+    data = _load(args)
+    _check_options(args)
+    data = _segment_if_needed(args, data)
+    horizon = args.horizon if args.horizon is not None else data.horizon
+    _check_positive("--horizon", horizon)
+    _prepare_output(args.output)
+    print(f"data: {data.title}")
+    X, names = data.X, data.names
+    search, fit_time, warned = _search(args, data)
     best = search.best_estimator_
     model = best[-1]
     _print_choice(search, len(names))
@@ -168,15 +186,17 @@ def _run(args):
         f"cross-validation fits and the refit"
         + (f" (warnings of the candidates: {', '.join(warned)})" if warned else "")
     )
+    print(describe_energy_trend(model))
     baseline = _fit_baseline(best, X)
 
-    x0 = np.asarray(system.initial_state if system is not None else X[0][0], dtype=float)
-    t = dt * np.arange(int(round(horizon / dt)) + 1)
+    system = data.system
+    x0 = np.asarray(system.initial_state if system is not None else data.states[0][0])
+    t = data.step * np.arange(int(round(horizon / data.step)) + 1)
     origin = (
         "u0* = (" + ", ".join(f"{v:g}" for v in x0) + ")" if system is not None
         else "the first observation of the first trajectory"
     )
-    print(f"\nsimulated from {origin} up to T = {t[-1]:g} (RK4 step {dt:g}):")
+    print(f"\nsimulated from {origin} up to T = {t[-1]:g} (RK4 step {data.step:g}):")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # leaving the domain is reported as a failure
         rk4, avf = _rollout(model, x0, t, "rk4"), _rollout(model, x0, t, "avf")
@@ -185,9 +205,13 @@ def _run(args):
             curves["non-SP"] = _rollout(baseline[-1], x0, t, "rk4")
     truth, errors = None, {}
     if system is not None:
-        truth = system.solve(x0, t, max_step=dt / 10)
+        truth = system.solve(x0, t, max_step=data.step / 10)
         errors = _print_errors(t, curves, truth)
-    _print_drift(t, model, {"RK4": rk4, "AVF": avf})
+    with warnings.catch_warnings():
+        # Where the rollouts leave the training box was said above (or shows
+        # as a failure); evaluating H~ along them need not repeat it.
+        warnings.simplefilter("ignore", DomainWarning)
+        _print_drift(t, model, {"RK4": rk4, "AVF": avf})
 
     import joblib
 
@@ -200,18 +224,114 @@ def _run(args):
         print("figure: skipped, matplotlib is not installed (pip install matplotlib)")
         return 0
     figure_path = os.path.join(args.output, "report.png")
-    draw_report(figure_path, t, curves, truth, errors, model, rk4, avf, X, names, title)
+    observed = (data.times[0] - data.times[0][0], data.states)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DomainWarning)
+        draw_report(
+            figure_path, t, curves, truth, errors, model, rk4, avf, observed, names, data.title
+        )
     print(f"figure: {figure_path}")
     return 0
 
 
+class _Data:
+    """What the command fits and reports on.
+
+    ``X`` is what the pipeline gets (time stamps as first column when
+    ``stamped``); ``times`` and ``states`` are the same trajectories split;
+    ``dt`` is the transformer's step (None with time stamps), ``step`` the
+    (median) sampling step; ``groups`` the CV groups of segments (or None).
+    """
+
+    def __init__(self, X, names, ids, stamped, dt, title, system=None, horizon=None):
+        self.X, self.names, self.ids, self.stamped = X, names, ids, stamped
+        self.dt, self.title, self.system = dt, title, system
+        self.groups = None
+        self._split(horizon)
+
+    def _split(self, horizon=None):
+        if self.stamped:
+            self.times = [np.asarray(T)[:, 0] for T in self.X]
+            self.states = [np.asarray(T)[:, 1:] for T in self.X]
+        else:
+            self.times = [self.dt * np.arange(len(T)) for T in self.X]
+            self.states = [np.asarray(T) for T in self.X]
+        steps = np.concatenate([np.diff(t) for t in self.times])
+        self.step = self.dt if self.dt is not None else float(np.median(steps))
+        # By default, ten times the median duration over all trajectories.
+        self.horizon = horizon or 10.0 * float(np.median([t[-1] - t[0] for t in self.times]))
+
+    def use_segments(self, segments, ids, groups):
+        self.X, self.ids, self.groups = segments, ids, groups
+        self._split()
+
+
+def _check_positive(option, value):
+    if not (math.isfinite(value) and value > 0):
+        raise UsageError(f"{option} must be a positive finite number; got {value:g}")
+
+
+def _check_options(args):
+    if args.cv < 2:
+        raise UsageError(f"--cv must be at least 2; got {args.cv}")
+    if args.segment_length is not None and args.segment_length < MIN_SAMPLES:
+        raise UsageError(
+            f"--segment-length must be at least {MIN_SAMPLES} samples; got {args.segment_length}"
+        )
+
+
+def _prepare_output(directory):
+    """Create the output directory and check, up front, that files can be written there."""
+    try:
+        os.makedirs(directory, exist_ok=True)
+    except OSError as error:
+        raise UsageError(f"cannot create the output directory {directory}: {error}") from None
+    try:
+        handle, probe = tempfile.mkstemp(dir=directory, prefix=".sk-hamiltonian-probe-")
+        os.close(handle)
+        os.remove(probe)
+    except OSError as error:
+        raise UsageError(
+            f"cannot write to the output directory {directory} ({error.strerror or error}): "
+            f"choose another one with --output"
+        ) from None
+
+
+def _segment_if_needed(args, data):
+    """Cut the trajectories into segments when they cannot fill the folds."""
+    if len(data.X) >= args.cv:
+        return data
+    total = sum(len(T) for T in data.X)
+    length = args.segment_length or min(SEGMENT_SAMPLES, total // (2 * args.cv))
+    if length < MIN_SAMPLES or total // length < args.cv:
+        raise UsageError(
+            f"{len(data.X)} trajectories of {total} samples in all cannot fill {args.cv} "
+            f"folds, even cut into segments of {max(length, MIN_SAMPLES)} samples: give more "
+            f"data, a lower --cv or a shorter --segment-length"
+        )
+    segments, groups = segment_trajectories(data.X, length, n_groups=args.cv)
+    ids = []
+    for label, T in zip(data.ids, data.X):
+        count = len(segment_trajectories([np.asarray(T)], length)[0])
+        ids.extend(f"{label}, segment {k}" for k in range(count))
+    n_records = len(data.X)
+    data.use_segments(segments, ids, groups)
+    longest = max(len(S) for S in segments)
+    print(
+        f"note: {n_records} {'trajectory' if n_records == 1 else 'trajectories'} cannot fill "
+        f"{args.cv} folds: cut into {len(segments)} segments of {length} samples"
+        + (f" (the last of a record up to {longest})" if longest > length else "")
+        + "; blocked cross-validation, each fold holds out a contiguous stretch of segments"
+    )
+    return data
+
+
 def _load(args):
-    """The trajectories, dt, state names, a title, the true system (or None), T."""
+    """The data to fit, with their names, title, true system (or None) and horizon."""
     if args.data is None:
         setting = QUICK if args.quick else EXAMPLE
         dt = PAPER_DT if args.dt is None else args.dt
-        if not dt > 0:
-            raise UsageError(f"--dt must be positive; got {dt}")
+        _check_positive("--dt", dt)
         system = single_pendulum()
         X = make_trajectories(
             system, setting["n_trajectories"], setting["n_intervals"], dt,
@@ -221,21 +341,58 @@ def _load(args):
             f"single pendulum (Example 1 of Wu, Qin & Xiu): {X.shape[0]} trajectories x "
             f"{X.shape[1]} samples, dt={dt:g}, +-{setting['noise']:.0%} noise"
         )
-        return X, dt, ["p", "q"], title, system, setting["horizon"]
-    if args.dt is None:
-        raise UsageError(
-            "--dt is required with a data file: give the sampling step, e.g. --dt 0.01"
+        return _Data(
+            X, ["p", "q"], [str(k) for k in range(len(X))], False, dt, title, system,
+            setting["horizon"],
         )
-    if not args.dt > 0:
-        raise UsageError(f"--dt must be positive; got {args.dt}")
-    X, names = load_trajectories(args.data)
+    if args.dt is not None:
+        _check_positive("--dt", args.dt)
+    loaded = load_trajectories(args.data)
+    if loaded.stamped and args.dt is not None:
+        raise UsageError(
+            f"{args.data} carries time stamps; --dt would contradict them: drop --dt"
+        )
+    if not loaded.stamped and args.dt is None:
+        raise UsageError(
+            "--dt is required with a data file without time stamps: give the sampling "
+            "step, e.g. --dt 0.01, or add the times (see --help)"
+        )
+    X, ids = _drop_short(loaded.trajectories, loaded.ids, args.data)
     lengths = [len(T) for T in X]
     span = f"{min(lengths)}" + (f"-{max(lengths)}" if max(lengths) > min(lengths) else "")
-    title = (
-        f"{args.data}: {len(lengths)} trajectories x {span} samples, {len(names)} states, "
-        f"dt={args.dt:g}"
+    data = _Data(X, loaded.names, ids, loaded.stamped, args.dt, "")
+    sampling = (
+        f"dt={args.dt:g}" if not loaded.stamped
+        else f"time stamps (median step {data.step:.4g})"
     )
-    return X, args.dt, names, title, None, 10.0 * (lengths[0] - 1) * args.dt
+    data.title = (
+        f"{args.data}: {len(lengths)} trajectories x {span} samples, {len(loaded.names)} "
+        f"states, {sampling}"
+    )
+    return data
+
+
+def _drop_short(X, ids, path):
+    """Drop trajectories too short for any derivative estimate, saying which."""
+    short = [k for k, T in enumerate(X) if len(T) < MIN_SAMPLES]
+    if not short:
+        return X, ids
+    if len(short) == len(X):
+        raise UsageError(
+            f"{path}: every trajectory has fewer than {MIN_SAMPLES} samples; time "
+            f"derivatives need at least {MIN_SAMPLES} per trajectory"
+        )
+    named = ", ".join(f"{ids[k]} ({len(X[k])} samples)" for k in short[:5])
+    more = f" and {len(short) - 5} more" if len(short) > 5 else ""
+    print(
+        f"note: dropped {len(short)} of {len(X)} trajectories with fewer than {MIN_SAMPLES} "
+        f"samples, from which no time derivative can be estimated: {named}{more}"
+    )
+    kept = [k for k in range(len(X)) if k not in set(short)]
+    X = [X[k] for k in kept]
+    if len({len(T) for T in X}) == 1:
+        X = np.stack(X)
+    return X, [ids[k] for k in kept]
 
 
 def _parse_denoise(values):
@@ -256,21 +413,26 @@ def _parse_denoise(values):
     return list(dict.fromkeys(out))
 
 
-def _grid(args, X, n_states):
+def _grid(args, data):
     """Candidate parameters, keeping only those the data can support."""
+    X, n_states = data.X, len(data.names)
     denoise = _parse_denoise(
         args.denoise_degrees or (QUICK_DENOISE if args.quick else DEFAULT_DENOISE)
     )
     degrees = sorted(set(args.degrees or (QUICK_DEGREES if args.quick else DEFAULT_DEGREES)))
     if degrees[0] < 1:
         raise UsageError(f"--degrees: n must be at least 1; got {degrees[0]}")
-    shortest = min(len(T) for T in X)
-    # Q = n_times - 1 interpolates the noise; finite differences need 3 samples.
-    dropped = [
-        Q for Q in denoise if (shortest < 3 if Q == "fd" else Q > shortest - 2)
-    ]
+    lengths = [len(T) for T in X]
+    shortest = min(lengths)
+    # Q = n_times - 1 interpolates the noise (trajectories have at least 3 samples).
+    dropped = [Q for Q in denoise if Q != "fd" and Q > shortest - 2]
     if dropped:
-        print(f"note: dropped de-noising degrees {dropped}: trajectories have {shortest} samples")
+        which = (
+            f"trajectories have {shortest} samples" if max(lengths) == shortest
+            else f"the shortest trajectory ({data.ids[int(np.argmin(lengths))]}) has "
+            f"{shortest} samples, and Q must be at most samples - 2"
+        )
+        print(f"note: dropped de-noising degrees {dropped}: {which}")
     denoise = [Q for Q in denoise if Q not in dropped]
     # At least twice as many equations as unknowns in every training fold.
     equations = (args.cv - 1) / args.cv * sum(len(T) for T in X) * n_states
@@ -280,10 +442,12 @@ def _grid(args, X, n_states):
     if too_big:
         print(f"note: dropped degrees {too_big}: too many unknowns for the data")
     degrees = [n for n in degrees if n not in too_big]
-    if not denoise or not degrees:
+    if not denoise:
         raise UsageError(
-            "no candidate left: give lower --degrees or --denoise-degrees, or more data"
+            f"no de-noising degree left: give --denoise-degrees at most {shortest - 2}, or 'fd'"
         )
+    if not degrees:
+        raise UsageError("no degree left: give lower --degrees, or more data")
     grid = []
     if "fd" in denoise:
         grid.append({METHOD_KEY: ["finite_difference"], N_KEY: degrees})
@@ -327,17 +491,22 @@ class _ProgressScorer:
         return score
 
 
-def _search(args, X, dt, n_states):
-    grid = _grid(args, X, n_states)
+def _search(args, data):
+    n_states = len(data.names)
+    grid = _grid(args, data)
     n_candidates = sum(int(np.prod([len(v) for v in g.values()])) for g in grid)
-    pipe = make_pipeline(DerivativeTransformer(dt=dt), HamiltonianRegressor())
+    pipe = make_pipeline(DerivativeTransformer(dt=data.dt), HamiltonianRegressor())
+    if data.groups is None:
+        folds, what = KFold(args.cv, shuffle=True, random_state=args.seed), "whole trajectories"
+    else:
+        folds, what = GroupKFold(args.cv), "contiguous segments"
     print(
-        f"search: {n_candidates} candidates x {args.cv} folds of whole trajectories, "
+        f"search: {n_candidates} candidates x {args.cv} folds of {what}, "
         f"score = rollouts vs held-out observations, refit = one-standard-error rule",
         flush=True,
     )
     search = GridSearchCV(
-        pipe, grid, cv=KFold(args.cv, shuffle=True, random_state=args.seed),
+        pipe, grid, cv=folds,
         scoring=_ProgressScorer(n_candidates, args.cv, sys.stderr),
         refit=one_standard_error_rule(pipe, n_states=n_states),
     )
@@ -346,7 +515,7 @@ def _search(args, X, dt, n_states):
     # report names the kinds once instead.
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        search.fit(X)
+        search.fit(data.X, groups=data.groups)
     return search, time.perf_counter() - start, sorted({w.category.__name__ for w in caught})
 
 

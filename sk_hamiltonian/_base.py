@@ -6,6 +6,7 @@ from numbers import Integral, Real
 import numpy as np
 from sklearn.base import BaseEstimator, RegressorMixin, _fit_context
 from sklearn.utils import check_array
+from sklearn.utils._available_if import available_if
 from sklearn.utils._param_validation import Interval, InvalidParameterError, StrOptions
 from sklearn.utils.validation import _check_sample_weight, check_is_fitted, validate_data
 
@@ -14,12 +15,15 @@ from ._integrate import integrate, make_integrator, raise_on_failure
 from ._scoring import multistep_errors
 from ._solvers import (
     choose_solver,
-    normal_equations,
     solve_dense,
+    solve_iterative,
     solve_nonnegative_tail,
     solve_normal,
+    stack_blocks,
     warn_if_ill_conditioned,
+    warn_not_converged,
 )
+from ._streaming import PartialFitState
 from ._space import ModelSpace, index_set
 from ._space.space import outside_domain
 from ._trajectories import unpack_derivatives
@@ -60,6 +64,25 @@ def check_time(t):
     return t
 
 
+def _is_dask(X):
+    """Whether ``X`` is a dask collection (without importing dask)."""
+    return type(X).__module__.split(".")[0] == "dask" and hasattr(X, "__dask_graph__")
+
+
+class _ShapeOnly:
+    """A chunk's data seen by ``_check_size`` only for its shapes (never underdetermined)."""
+
+    def __init__(self, data):
+        self.states, self.derivatives = data.states, data.derivatives
+
+    def n_rows(self, fit_on):
+        return np.inf
+
+
+class _FallBack(Exception):
+    """Conjugate gradients did not converge under solver="auto"."""
+
+
 class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
     """Linear models of ``dx/dt = f(x)`` in a tensor-product space, fitted by least squares.
 
@@ -76,7 +99,8 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
         "separable": ["boolean"],
         "max_interaction": [Interval(Integral, 1, None, closed="left"), None],
         "fit_on": [StrOptions({"derivatives", "steps"})],
-        "solver": [StrOptions({"auto", "lstsq", "normal"})],
+        "solver": [StrOptions({"auto", "lstsq", "normal", "iterative"})],
+        "verbose": ["verbose"],
     }
 
     #: Whether the basis holds the constant (set by subclasses).
@@ -85,6 +109,7 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
     def __init__(
         self, degree=3, *, domain=None, periodic=None, momentum_degree=None,
         separable=False, max_interaction=None, fit_on="derivatives", solver="auto",
+        verbose=0,
     ):
         self.degree = degree
         self.domain = domain
@@ -94,6 +119,7 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
         self.max_interaction = max_interaction
         self.fit_on = fit_on
         self.solver = solver
+        self.verbose = verbose
 
     # ------------------------------------------------------------------ fit
     @_fit_context(prefer_skip_nested_validation=True)
@@ -120,30 +146,146 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
             The fitted estimator.
         """
         self._check_integer_params()
+        if _is_dask(X) or _is_dask(y):
+            from ._distributed import fit_distributed
+
+            return fit_distributed(self, X, y, sample_weight)
+        self._partial = None
         data = self._training_data(X, y, sample_weight)
+        self._set_up_space(data)
+        self.solver_ = choose_solver(
+            self.solver, data.n_rows(self.fit_on) * self._rows_per_sample(data.states.shape[1]),
+            self.powers_.shape[0],
+        )
+        self._fit_coef(data)
+        self._finish_fit(data)
+        return self
+
+    def _check_partial_fit(self):
+        # partial_fit exists only with a fixed box: the basis (and so the
+        # accumulated normal equations) lives on it.
+        if self.domain is None:
+            raise AttributeError(
+                "partial_fit needs an explicit `domain` (one (low, high) row per state "
+                "variable): the basis must stay on the same box for every chunk. Pass "
+                "domain=..., or use fit."
+            )
+        return True
+
+    @available_if(_check_partial_fit)
+    def partial_fit(self, X, y=None, sample_weight=None):
+        """Add a chunk of samples to the fit (normal equations accumulated across calls).
+
+        Each call adds the chunk's normal equations ``A^T A`` and ``A^T b`` to
+        those of the previous calls and solves them (Cholesky, as
+        ``solver="normal"`` without its refinement, since earlier samples are
+        gone), so that after the last chunk the coefficients are those of
+        :meth:`fit` on all chunks together, to round-off on well-conditioned
+        problems. Memory is ``O(n_terms**2)``, independent of the number of
+        samples. Available only with an explicit ``domain``; the model-space
+        parameters must not change between calls.
+
+        Parameters
+        ----------
+        X : array-like of shape (n_samples, n_states), or derivative layout
+            A chunk of states (with their derivatives in ``y``), or of
+            trajectories in the derivative layout; with ``fit_on="steps"``
+            each chunk holds whole trajectories.
+        y : array-like of shape (n_samples, n_states) or None
+            Time derivatives of the states; None with the derivative layout.
+        sample_weight : array-like of shape (n_samples,), default=None
+            Weights of the chunk's states (of its trajectories for the
+            derivative layout).
+
+        Returns
+        -------
+        self : object
+            The estimator, with ``coef_`` and the other fitted attributes
+            updated from all chunks so far; ``state_scale_`` over all samples,
+            ``time_scale_`` from a random sample of them, ``dt_`` the median
+            of the chunks' median steps, and the energy-trend attributes from
+            the last chunk.
+        """
+        state = getattr(self, "_partial", None)
+        if state is None:
+            self._validate_params()
+            self._check_integer_params()
+            if self.solver not in ("auto", "normal"):
+                raise ValueError(
+                    f"partial_fit accumulates the normal equations, so it needs "
+                    f"solver='auto' or 'normal'; got solver={self.solver!r}."
+                )
+        else:
+            state.check_parameters(self)
+        data = self._training_data(X, y, sample_weight, reset=state is None)
+        if state is None:
+            # Each chunk may be smaller than the number of unknowns: only the
+            # accumulated equations must determine them.
+            self._set_up_space(data, size_data=_ShapeOnly(data))
+            state = PartialFitState(self, self._normal_accumulator(), data.states.shape[1])
+        else:
+            self._check_size(_ShapeOnly(data))
+            # Frames: _warn_outside, partial_fit, its available_if wrapper.
+            self._warn_outside(data.states, what="the training states", stacklevel=4)
+        state.add(self._design_blocks(data, grouped=True), data, self._training_step(data))
+        self._partial = state
+        self._solve_accumulated(state, data)
+        return self
+
+    def _solve_accumulated(self, state, data, residual=None):
+        """Solve accumulated normal equations and set every fitted attribute.
+
+        ``state`` is a :class:`~sk_hamiltonian._streaming.PartialFitState`;
+        ``data`` (one chunk) serves the energy-trend check; ``residual(keep)``
+        optionally returns the refinement callback against the design.
+        """
+        gram, rhs = state.normal_equations()
+        n_columns, n_tail = self._n_unknowns(), self._n_nonnegative()
+
+        def solve(keep):
+            refine = None if residual is None else residual(keep)
+            if keep.all():
+                return solve_normal(gram, rhs, refine)
+            return solve_normal(gram[np.ix_(keep, keep)], rhs[keep], refine)
+
+        if n_tail:
+            coef, self.cond_, self.rank_ = solve_nonnegative_tail(solve, n_columns, n_tail)
+        else:
+            coef, self.cond_, self.rank_ = solve(np.ones(n_columns, dtype=bool))
+        self.solver_ = "normal"
+        self._set_solution(coef)
+        self._finish_fit(
+            data, scale=state.scale(), magnitude=state.magnitude(),
+            time_scale_states=state.reservoir,
+        )
+        self.dt_ = state.training_step()
+
+    def _set_up_space(self, data, size_data=None):
+        """Check the data against the parameters and build the model space."""
         n_states = data.states.shape[1]
         self._check_dimensions(n_states)
         self.periodic_ = self._fit_periodic(n_states)
         self.powers_ = self._index_set(n_states)
-        self._check_size(data)
+        self._check_size(data if size_data is None else size_data)
         self.domain_ = self._fit_domain(
             data.states if data.sample_weight is None else data.states[data.sample_weight > 0]
         )
         self._space = ModelSpace(self.domain_, self.powers_, self.periodic_)
-        self.solver_ = choose_solver(
-            self.solver, data.n_rows(self.fit_on) * self._rows_per_sample(n_states),
-            self.powers_.shape[0],
-        )
-        self._fit_coef(data)
+
+    def _finish_fit(self, data, scale=None, magnitude=None, time_scale_states=None):
+        """Fitted attributes beyond the coefficients, from the training data."""
         warn_if_ill_conditioned(self.cond_, self.rank_, self._n_columns(), type(self).__name__)
         self.n_terms_ = self._n_fitted()
         self.dt_ = self._training_step(data)
-        self.state_scale_ = self._state_scale(data.states)
+        self.state_scale_ = self._state_scale(data.states) if scale is None else scale
         # Typical size of each variable, for ranking terms (inspection).
-        self._state_magnitude = np.sqrt(np.mean(data.states**2, axis=0))
-        self.time_scale_ = self._time_scale(data.states)
+        self._state_magnitude = (
+            np.sqrt(np.mean(data.states**2, axis=0)) if magnitude is None else magnitude
+        )
+        self.time_scale_ = self._time_scale(
+            data.states if time_scale_states is None else time_scale_states
+        )
         self._after_fit(data)
-        return self
 
     def _check_integer_params(self):
         # scikit-learn's Interval(Integral) lets booleans through; True is no degree.
@@ -155,10 +297,10 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
                     f"a boolean; got {value!r}."
                 )
 
-    def _training_data(self, X, y, sample_weight):
+    def _training_data(self, X, y, sample_weight, reset=True):
         """Validate the input and gather what the fit needs."""
         if not is_trajectory_container(X):
-            X, y = validate_data(self, X, y, multi_output=True, y_numeric=True)
+            X, y = validate_data(self, X, y, multi_output=True, y_numeric=True, reset=reset)
             weight = None if sample_weight is None else _check_sample_weight(sample_weight, X)
             return TrainingData(X, y, weight)
         if y is not None:
@@ -171,7 +313,7 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
         lengths = [S.shape[0] for S in states]
         X2, y2 = validate_data(
             self, np.concatenate(states), np.concatenate(derivatives), multi_output=True,
-            y_numeric=True,
+            y_numeric=True, reset=reset,
         )
         trajectory_weight = weight = None
         if sample_weight is not None:
@@ -218,7 +360,10 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
             domain[self.periodic_] = [-np.pi, np.pi]
             width = domain[:, 1] - domain[:, 0]
             scale = np.maximum(np.abs(domain).max(axis=1), np.finfo(float).tiny)
-            flat = np.flatnonzero(width <= 1e-9 * scale)
+            # Thinner than round-off of the values, or so thin that the map to
+            # the window overflows.
+            with np.errstate(divide="ignore", over="ignore"):
+                flat = np.flatnonzero((width <= 1e-9 * scale) | ~np.isfinite(2.0 / width))
             if flat.size:
                 raise ValueError(
                     f"State variable(s) {flat.tolist()} are constant in the training "
@@ -228,7 +373,11 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
                 )
             return domain
         domain = check_array(self.domain, input_name="domain", ensure_2d=False)
-        if domain.shape != (n_states, 2) or np.any(domain[:, 1] <= domain[:, 0]):
+        with np.errstate(divide="ignore", over="ignore", invalid="ignore"):
+            degenerate = domain.shape == (n_states, 2) and not np.all(
+                np.isfinite(2.0 / (domain[:, 1] - domain[:, 0]))
+            )
+        if domain.shape != (n_states, 2) or np.any(domain[:, 1] <= domain[:, 0]) or degenerate:
             raise ValueError(
                 f"domain must have shape ({n_states}, 2) with one (low, high) row "
                 f"per state variable and low < high; got {np.asarray(self.domain).tolist()}."
@@ -253,26 +402,88 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
         """Number of basis functions for data with ``n_states`` variables."""
         return self._index_set(n_states).shape[0]
 
-    def _solve_blocks(self, make_blocks, n_columns, n_nonnegative=0):
-        """Solve the least-squares problem given by row blocks; the last unknowns >= 0."""
+    def _fit_coef(self, data):
+        """Solve the least-squares problem of ``data`` with ``solver_``; set the coefficients."""
+        coef, self.cond_, self.rank_ = self._solve(data)
+        self._set_solution(coef)
+
+    def _solve(self, data):
+        """Coefficients, condition number and rank; the last unknowns constrained >= 0.
+
+        The subclass hooks give the design three ways: row blocks
+        (``_design_blocks``, for ``"lstsq"``), grouped row blocks into a
+        ``_normal_accumulator`` (``"normal"``), and an operator
+        (``_design_operator``, for ``"iterative"`` and for refining a
+        Cholesky solution without assembling the design again).
+        """
+        name = type(self).__name__
+        n_columns, n_nonnegative = self._n_unknowns(), self._n_nonnegative()
+
+        def constrained(solve):
+            if not n_nonnegative:
+                return solve(np.ones(n_columns, dtype=bool))
+            return solve_nonnegative_tail(solve, n_columns, n_nonnegative)
+
+        if self.solver_ == "iterative":
+            operator = self._design_operator(data)
+            report = self._progress("iteration {0}: relative normal residual {1:.2e}")
+
+            def solve_cg(keep):
+                coef, cond, rank, converged = solve_iterative(operator, keep, progress=report)
+                if not converged and self.solver == "auto":
+                    raise _FallBack
+                if not converged:
+                    warn_not_converged(name)
+                return coef[keep], cond, rank
+
+            try:
+                return constrained(solve_cg)
+            except _FallBack:
+                # The preconditioner assumes samples spread over the box; these
+                # are not: fall back to the dense normal equations.
+                self.solver_ = "normal"
+                if self.verbose:
+                    print(f"[{name}] conjugate gradients did not converge; normal equations")
         if self.solver_ == "lstsq":
-            parts = list(make_blocks())
-            A = np.concatenate([a for a, _ in parts])
-            b = np.concatenate([b for _, b in parts])
-            del parts
-            if not n_nonnegative:
-                return solve_dense(A, b)
+            A, b = stack_blocks(self._design_blocks(data), n_columns)
 
-            def solve(keep):
-                return solve_dense(A[:, keep], b)
-        else:
-            gram, rhs = normal_equations(make_blocks(), n_columns)
-            if not n_nonnegative:
-                return solve_normal(gram, rhs)
+            def solve_svd(keep):
+                # solve_dense overwrites its design: give it a copy unless it
+                # is the only solve.
+                return solve_dense(A if not n_nonnegative else A[:, keep], b)
 
-            def solve(keep):
-                return solve_normal(gram[np.ix_(keep, keep)], rhs[keep])
-        return solve_nonnegative_tail(solve, n_columns, n_nonnegative)
+            return constrained(solve_svd)
+        accumulator = self._normal_accumulator().add_blocks(
+            self._design_blocks(data, grouped=True),
+            progress=self._progress("block {0}: {1} equations accumulated"),
+        )
+        gram, rhs = accumulator.result()
+        operator = self._design_operator(data)
+
+        def solve_cholesky(keep):
+            def residual(coef):
+                full = np.zeros((n_columns,) + coef.shape[1:])
+                full[keep] = coef
+                r = operator.targets - operator.matvec(full if full.ndim == 2 else full[:, None])
+                out = operator.rmatvec(r)[keep]
+                return out if coef.ndim == 2 else out[:, 0]
+
+            if keep.all():
+                return solve_normal(gram, rhs, residual)
+            return solve_normal(gram[np.ix_(keep, keep)], rhs[keep], residual)
+
+        return constrained(solve_cholesky)
+
+    def _progress(self, message):
+        """A progress callback printing ``message`` when ``verbose`` (None when silent)."""
+        if not self.verbose:
+            return None
+        name = type(self).__name__
+
+        def report(*values):
+            print(f"[{name}] " + message.format(*values), flush=True)
+
+        return report
 
     def _training_step(self, data):
         """Median sampling step of the training trajectories (NaN without them)."""
@@ -291,6 +502,7 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
         jacobian = self._jacobian(states[:: max(1, states.shape[0] // TIME_SCALE_SAMPLES)])
         if jacobian is None:
             return float("nan")
+        jacobian = jacobian[np.isfinite(jacobian).all(axis=(1, 2))]
         with np.errstate(all="ignore"):
             radius = np.abs(np.linalg.eigvals(jacobian)).max(axis=1)
         radius = radius[np.isfinite(radius)]
@@ -351,9 +563,24 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
             if isinstance(states, np.ndarray):
                 return self.predict(states.reshape(-1, states.shape[-1])).reshape(states.shape)
             return [self.predict(s) for s in states]
-        X = validate_data(self, X, reset=False)
+        X = self._validate_states(X)
         self._warn_outside(X)
         return self._vector_field(X)
+
+    def _validate_states(self, X):
+        """``validate_data(self, X, reset=False)``, short-cut for a plain finite float64 array.
+
+        For such an array (no feature names at fit) the validation returns
+        it unchanged; its generic path costs about ten times the prediction
+        of one state.
+        """
+        if (
+            type(X) is np.ndarray and X.dtype == np.float64 and X.ndim == 2
+            and X.shape[0] > 0 and X.shape[1] == self.n_features_in_
+            and not hasattr(self, "feature_names_in_") and np.isfinite(X).all()
+        ):
+            return X
+        return validate_data(self, X, reset=False)
 
     # ------------------------------------------------------------ simulation
     def _integrator(self, method=None):
@@ -508,7 +735,28 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
         """Number of fitted unknowns."""
         return int(np.size(self.coef_))
 
-    def _fit_coef(self, data):
+    def _design_blocks(self, data, grouped=False):
+        """Row blocks of the design (grouped: ``(A, b, group)`` for the accumulator)."""
+        raise NotImplementedError
+
+    def _design_operator(self, data):
+        """The design as a :class:`~sk_hamiltonian._design_operator.DesignOperator`."""
+        raise NotImplementedError
+
+    def _normal_accumulator(self):
+        """An empty :class:`~sk_hamiltonian._solvers.NormalEquations` with the design's groups."""
+        raise NotImplementedError
+
+    def _n_unknowns(self):
+        """Columns of the design."""
+        raise NotImplementedError
+
+    def _n_nonnegative(self):
+        """How many of the last unknowns are constrained to be >= 0."""
+        return 0
+
+    def _set_solution(self, coef):
+        """Set the fitted coefficients from the solution vector."""
         raise NotImplementedError
 
     def _vector_field(self, X):

@@ -28,22 +28,24 @@ def energy_trend(energies):
     z : float
         The slope over its standard error; NaN as ``rate``.
     """
-    tt, th, hh = 0.0, 0.0, []
-    centred = []
-    for t, H in energies:
-        if t.shape[0] < 2:
-            continue
-        tc, hc = t - t.mean(), H - H.mean()
-        tt += tc @ tc
-        th += tc @ hc
-        centred.append((tc, hc))
-        hh.append(H)
-    spread = np.std(np.concatenate(hh)) if hh else 0.0
-    if not centred or tt == 0 or spread == 0:
+    pairs = [(t, H) for t, H in energies if t.shape[0] >= 2]
+    if not pairs:
+        return float("nan"), float("nan")
+    # All trajectories at once (thousands of short ones are common): centre
+    # each on its own means through group sums.
+    lengths = np.array([t.shape[0] for t, _ in pairs])
+    group = np.repeat(np.arange(lengths.size), lengths)
+    times = np.concatenate([t for t, _ in pairs])
+    values = np.concatenate([H for _, H in pairs])
+    tc = times - (np.bincount(group, times) / lengths)[group]
+    hc = values - (np.bincount(group, values) / lengths)[group]
+    tt, th = tc @ tc, tc @ hc
+    spread = np.std(values)
+    if tt == 0 or spread == 0:
         return float("nan"), float("nan")
     slope = th / tt
-    residual = sum(float(np.sum((hc - slope * tc) ** 2)) for tc, hc in centred)
-    dof = sum(tc.shape[0] for tc, _ in centred) - len(centred) - 1
+    residual = float(np.sum((hc - slope * tc) ** 2))
+    dof = values.size - lengths.size - 1
     if dof < 1:
         return float(slope / spread), float("nan")
     stderr = np.sqrt(residual / dof / tt)

@@ -1,5 +1,6 @@
 """Time derivatives (and de-noised states) estimated from sampled trajectories."""
 
+import warnings
 from numbers import Integral, Real
 
 import numpy as np
@@ -7,66 +8,36 @@ from sklearn.base import BaseEstimator, TransformerMixin, _fit_context
 from sklearn.utils._param_validation import Interval, StrOptions
 from sklearn.utils.validation import check_is_fitted
 
+from ._differentiation import (
+    finite_difference,
+    finite_difference_at,
+    fit_operators,
+    is_uniform,
+    noise_level,
+    polynomial_operators,
+    windowed_irregular,
+    windowed_uniform,
+)
 from ._trajectories import check_n_states, check_trajectories, pack_derivatives
+from .exceptions import SmoothingWarning
 
-
-def finite_difference(X, dt):
-    """Second-order finite differences along the time axis.
-
-    Central differences inside, second-order one-sided differences at both ends.
-
-    Parameters
-    ----------
-    X : ndarray of shape (..., n_times, n_features)
-        Samples at the uniform step ``dt``; ``n_times >= 3``.
-    dt : float
-        Time step.
-
-    Returns
-    -------
-    dXdt : ndarray of the same shape as ``X``
-    """
-    D = np.empty_like(X)
-    D[..., 1:-1, :] = (X[..., 2:, :] - X[..., :-2, :]) / (2.0 * dt)
-    D[..., 0, :] = (-3.0 * X[..., 0, :] + 4.0 * X[..., 1, :] - X[..., 2, :]) / (2.0 * dt)
-    D[..., -1, :] = (3.0 * X[..., -1, :] - 4.0 * X[..., -2, :] + X[..., -3, :]) / (2.0 * dt)
-    return D
-
-
-def polynomial_operators(n_times, dt, degree):
-    """Linear maps from samples to the least-squares polynomial and its derivative.
-
-    The polynomial of degree ``degree`` in time is fitted by least squares to
-    ``n_times`` equally spaced samples. It is expanded in Legendre polynomials of
-    the time interval mapped to ``[-1, 1]``, which keeps the fit well conditioned
-    for high degrees.
-
-    Parameters
-    ----------
-    n_times : int
-        Samples per trajectory; must exceed ``degree``.
-    dt : float
-        Time step.
-    degree : int
-        Polynomial degree ``Q``.
-
-    Returns
-    -------
-    smooth : ndarray of shape (n_times, n_times)
-        ``smooth @ x`` gives the fitted values at the sample times.
-    differentiate : ndarray of shape (n_times, n_times)
-        ``differentiate @ x`` gives the derivative of the fit at the sample times.
-    """
-    tau = np.linspace(-1.0, 1.0, n_times)
-    V = np.polynomial.legendre.legvander(tau, degree)
-    dV = np.zeros_like(V)
-    for k in range(1, degree + 1):
-        unit = np.zeros(k + 1)
-        unit[k] = 1.0
-        dV[:, k] = np.polynomial.legendre.legval(tau, np.polynomial.legendre.legder(unit))
-    pinv = np.linalg.pinv(V)
-    # d tau / d t = 2 / (total time span).
-    return V @ pinv, (2.0 / ((n_times - 1) * dt)) * (dV @ pinv)
+# Samples per local polynomial with window="auto", per coefficient: enough to
+# average the noise, few enough that a degree-5 polynomial follows a
+# pendulum sampled at the paper's step (48 samples of dt = 0.01 are a quarter
+# of its period) ...
+AUTO_WINDOW_PER_COEFFICIENT = 8
+# ... and never fewer than this, so that trajectories of up to 48 samples
+# (the paper's have 41) keep one polynomial each, as before windows existed,
+# whatever the degree.
+AUTO_WINDOW_MIN = 48
+# The local fits are reported as too stiff when their residuals exceed this
+# multiple of what the noise alone leaves ...
+MISFIT_RATIO = 3.0
+# ... and this fraction of the variable's spread (on clean data the noise
+# estimate is round-off, and tiny residuals are no misfit).
+MISFIT_FLOOR = 1e-3
+# Entries of the per-trajectory operators formed at once (float64: 160 MB).
+OPERATOR_ENTRIES = 20_000_000
 
 
 class DerivativeTransformer(TransformerMixin, BaseEstimator):
@@ -74,8 +45,10 @@ class DerivativeTransformer(TransformerMixin, BaseEstimator):
 
     Two estimators from Section 2.2 of Wu, Qin & Xiu: second-order finite
     differences for clean data, and for noisy data a least-squares polynomial in
-    time fitted to each trajectory and differentiated analytically, whose fitted
-    values also replace the noisy states (the paper's de-noising filter).
+    time, differentiated analytically, whose fitted values also replace the
+    noisy states (the paper's de-noising filter). A trajectory no longer than
+    ``window`` samples gets one polynomial (the paper's fit); a longer record
+    gets a local polynomial over the window centred on each sample.
 
     The output keeps one sample per trajectory and carries the raw observations
     and their time stamps alongside, so that
@@ -85,36 +58,60 @@ class DerivativeTransformer(TransformerMixin, BaseEstimator):
     Parameters
     ----------
     dt : float, default=None
-        Uniform sampling step of the trajectories. Required; ``None`` raises at
-        ``fit``.
+        Uniform sampling step of the trajectories. None: each trajectory
+        carries its own time stamps in its *first column* (``1 + n_states``
+        columns, times strictly increasing, at any spacing), and the
+        derivatives and polynomials are computed in those times.
     method : {"polynomial", "finite_difference"}, default="polynomial"
-        ``"polynomial"``: least-squares polynomial of degree ``degree`` per
-        trajectory. ``"finite_difference"``: second-order differences, central
-        inside and one-sided at the ends; needs at least 3 samples per trajectory
-        and ignores ``degree`` and ``smooth_states``.
+        ``"polynomial"``: least-squares polynomials of degree ``degree`` in
+        time (see ``window``). ``"finite_difference"``: second-order
+        differences, central inside and one-sided at the ends (the three-point
+        formulas of a non-uniform grid when ``dt`` is None); needs at least 3
+        samples per trajectory and ignores ``degree``, ``window`` and
+        ``smooth_states``.
     degree : int, default=5
         Degree ``Q`` of the time polynomial. It must be smaller than the number
         of samples per trajectory (equal to ``n_times - 1`` interpolates).
+    window : int or "auto", default="auto"
+        Samples per polynomial fit, larger than ``degree``. A trajectory with
+        at most ``window`` samples is fitted by one polynomial; in a longer
+        one every sample gets the polynomial fitted to the ``window`` samples
+        centred on it (the first and last windows at the ends), a
+        Savitzky-Golay filter on uniform grids. ``"auto"``: ``8 * (degree +
+        1)`` samples, and at least 48, so that trajectories of up to 48
+        samples (the paper's have 41) get one polynomial each whatever the
+        degree.
     smooth_states : bool, default=True
         With ``method="polynomial"``, replace the states by the fitted values.
 
     Attributes
     ----------
     n_features_in_ : int
-        Number of state variables ``2d`` seen during :meth:`fit`.
+        Number of state variables ``2d`` seen during :meth:`fit` (the time
+        column, with ``dt=None``, is not counted).
+    window_ : int
+        Samples per polynomial fit (``window``, with ``"auto"`` resolved).
 
     See Also
     --------
     HamiltonianRegressor : Fits a Hamiltonian to the output of this transformer.
     unpack_derivatives : Splits the output into times, states, derivatives and
         observations.
+    sk_hamiltonian.model_selection.segment_trajectories : Cuts long records
+        into segments for cross-validation.
 
     Notes
     -----
     The output is the *derivative layout*: the input container (3-D array or
     list) with a last axis ``[t, states, derivatives, observed]`` of width
-    ``1 + 3 * n_states``, with ``t = 0, dt, 2 dt, ...``. Fitting is stateless:
-    every trajectory is processed on its own.
+    ``1 + 3 * n_states``, with ``t = 0, dt, 2 dt, ...`` or the given time
+    stamps. Fitting is stateless: every trajectory is processed on its own.
+
+    With ``method="polynomial"``, the residuals of the fits are compared with
+    the noise level estimated from the sixth differences of the samples; a
+    :class:`~sk_hamiltonian.SmoothingWarning` says when they are far above it
+    (the polynomials cannot follow the trajectories, and their derivatives
+    are biased).
 
     Examples
     --------
@@ -125,19 +122,31 @@ class DerivativeTransformer(TransformerMixin, BaseEstimator):
     >>> Xt = DerivativeTransformer(dt=0.1, degree=8).fit_transform(X)
     >>> Xt.shape
     (2, 50, 7)
+
+    Irregular time stamps go in the first column:
+
+    >>> t = np.cumsum(np.random.default_rng(0).uniform(0.05, 0.15, size=50))
+    >>> T = np.column_stack([t, -np.sin(t), np.cos(t)])
+    >>> Xt = DerivativeTransformer(method="finite_difference").fit_transform([T])
+    >>> bool(np.abs(Xt[0][:, 3] + np.cos(t)).max() < 0.01)  # dp/dt = -cos t
+    True
     """
 
     _parameter_constraints = {
         "dt": [Interval(Real, 0, None, closed="neither"), None],
         "method": [StrOptions({"polynomial", "finite_difference"})],
         "degree": [Interval(Integral, 1, None, closed="left")],
+        "window": [StrOptions({"auto"}), Interval(Integral, 2, None, closed="left")],
         "smooth_states": ["boolean"],
     }
 
-    def __init__(self, dt=None, *, method="polynomial", degree=5, smooth_states=True):
+    def __init__(
+        self, dt=None, *, method="polynomial", degree=5, window="auto", smooth_states=True
+    ):
         self.dt = dt
         self.method = method
         self.degree = degree
+        self.window = window
         self.smooth_states = smooth_states
 
     @_fit_context(prefer_skip_nested_validation=True)
@@ -146,8 +155,9 @@ class DerivativeTransformer(TransformerMixin, BaseEstimator):
 
         Parameters
         ----------
-        X : array-like of shape (n_trajectories, n_times, n_states) or list of 2-D arrays
-            Trajectories sampled every ``dt``.
+        X : array-like of shape (n_trajectories, n_times, n_columns) or list of 2-D arrays
+            Trajectories: the states sampled every ``dt``, or with ``dt=None``
+            the time stamps followed by the states.
         y : None
             Ignored.
 
@@ -156,6 +166,7 @@ class DerivativeTransformer(TransformerMixin, BaseEstimator):
         self : DerivativeTransformer
             The transformer.
         """
+        self.window_ = self._resolve_window()
         self._check(X)
         return self
 
@@ -164,8 +175,9 @@ class DerivativeTransformer(TransformerMixin, BaseEstimator):
 
         Parameters
         ----------
-        X : array-like of shape (n_trajectories, n_times, n_states) or list of 2-D arrays
-            Trajectories sampled every ``dt``.
+        X : array-like of shape (n_trajectories, n_times, n_columns) or list of 2-D arrays
+            Trajectories: the states sampled every ``dt``, or with ``dt=None``
+            the time stamps followed by the states.
 
         Returns
         -------
@@ -174,36 +186,119 @@ class DerivativeTransformer(TransformerMixin, BaseEstimator):
             of 2-D arrays if ``X`` was a list.
         """
         check_is_fitted(self)
-        trajectories, is_array = self._check(X, reset=False)
-        by_length = {}
-        for k, T in enumerate(trajectories):
-            by_length.setdefault(T.shape[0], []).append(k)
-        states = [None] * len(trajectories)
-        derivatives = [None] * len(trajectories)
-        # Trajectories of one length share the same linear operators: one
-        # batched product per length instead of one fit per trajectory.
-        for n_times, members in by_length.items():
-            batch = np.stack([trajectories[k] for k in members])
-            smoothed, dXdt = self._estimate(batch, n_times)
-            for i, k in enumerate(members):
-                states[k], derivatives[k] = smoothed[i], dXdt[i]
-        times = [self.dt * np.arange(T.shape[0]) for T in trajectories]
-        return pack_derivatives(times, states, derivatives, trajectories, is_array)
+        times, observed, is_array = self._check(X, reset=False)
+        fitted, derivatives = self._estimate(times, observed)
+        states = observed
+        if self.method == "polynomial":
+            self._warn_on_misfit(observed, fitted)
+            if self.smooth_states:
+                states = fitted
+        return pack_derivatives(times, states, derivatives, observed, is_array)
 
-    def _estimate(self, batch, n_times):
+    # -------------------------------------------------------------- estimates
+    def _estimate(self, times, observed):
+        """Fitted states and derivatives of every trajectory."""
+        by_length = {}
+        for k, S in enumerate(observed):
+            by_length.setdefault(S.shape[0], []).append(k)
+        fitted = [None] * len(observed)
+        derivatives = [None] * len(observed)
+        # Trajectories of one length share the same operators (a uniform step)
+        # or the same array shapes (time stamps): one batch per length.
+        for n_times, members in by_length.items():
+            batch = np.stack([observed[k] for k in members])
+            if self.dt is not None:
+                smoothed, dXdt = self._estimate_uniform(batch, n_times)
+            else:
+                smoothed, dXdt = self._estimate_stamped(
+                    batch, np.stack([times[k] for k in members])
+                )
+            for i, k in enumerate(members):
+                fitted[k], derivatives[k] = smoothed[i], dXdt[i]
+        return fitted, derivatives
+
+    def _estimate_uniform(self, batch, n_times):
         if self.method == "finite_difference":
             return batch, finite_difference(batch, self.dt)
-        smooth, differentiate = polynomial_operators(n_times, self.dt, self.degree)
-        dXdt = np.einsum("ij,bjk->bik", differentiate, batch)
-        smoothed = np.einsum("ij,bjk->bik", smooth, batch) if self.smooth_states else batch
-        return smoothed, dXdt
+        if n_times <= self.window_:
+            smooth, differentiate = polynomial_operators(n_times, self.dt, self.degree)
+            return (
+                np.einsum("ij,bjk->bik", smooth, batch),
+                np.einsum("ij,bjk->bik", differentiate, batch),
+            )
+        steps = np.full(batch.shape[0], float(self.dt))
+        return windowed_uniform(batch, steps, self.degree, self.window_)
+
+    def _estimate_stamped(self, batch, t):
+        if self.method == "finite_difference":
+            return batch, finite_difference_at(batch, t)
+        n_times = t.shape[1]
+        if n_times <= self.window_:
+            smoothed, dXdt = np.empty_like(batch), np.empty_like(batch)
+            # Each trajectory has its own operators: bound their memory.
+            chunk = max(1, OPERATOR_ENTRIES // (2 * n_times * n_times))
+            for i in range(0, batch.shape[0], chunk):
+                smooth, differentiate = fit_operators(t[i : i + chunk], self.degree)
+                smoothed[i : i + chunk] = smooth @ batch[i : i + chunk]
+                dXdt[i : i + chunk] = differentiate @ batch[i : i + chunk]
+            return smoothed, dXdt
+        pieces = []
+        for S, times in zip(batch, t):
+            if is_uniform(times):
+                step = (times[-1] - times[0]) / (n_times - 1)
+                smoothed, dXdt = windowed_uniform(S[None], [step], self.degree, self.window_)
+                pieces.append((smoothed[0], dXdt[0]))
+            else:
+                pieces.append(windowed_irregular(S, times, self.degree, self.window_))
+        return np.stack([p[0] for p in pieces]), np.stack([p[1] for p in pieces])
+
+    def _warn_on_misfit(self, observed, fitted):
+        """Warn when the polynomials leave residuals far above the noise level."""
+        sigma = noise_level(observed)
+        if sigma is None:
+            return
+        samples = np.concatenate(observed)
+        residual = samples - np.concatenate(fitted)
+        rms = np.sqrt(np.mean(residual**2, axis=0))
+        # Noise alone leaves sigma * sqrt(1 - leverage); a fit of Q + 1
+        # coefficients to m samples has mean leverage (Q + 1) / m.
+        fitted_on = np.concatenate(
+            [np.full(S.shape[0], min(S.shape[0], self.window_)) for S in observed]
+        )
+        kept = np.sqrt(max(np.mean(1.0 - (self.degree + 1) / fitted_on), 0.0))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            ratio = rms / (sigma * kept)
+        misfit = (ratio > MISFIT_RATIO) & (rms > MISFIT_FLOOR * np.std(samples, axis=0))
+        if not misfit.any():
+            return
+        worst = int(np.flatnonzero(misfit)[np.argmax(ratio[misfit])])
+        size = "far" if not np.isfinite(ratio[worst]) else f"{ratio[worst]:.3g} times"
+        warnings.warn(
+            f"DerivativeTransformer: the least-squares polynomials (degree={self.degree}, "
+            f"window={self.window_} samples) leave residuals {size} above the noise level "
+            f"estimated from the data (state variable {worst}): they cannot follow the "
+            f"trajectories, and their derivatives are biased. Use a smaller `window` or a "
+            f"larger `degree` (a cross-validated search over both finds the balance), or "
+            f"method='finite_difference' for clean data.",
+            SmoothingWarning,
+            # Frames: this method, transform, scikit-learn's set_output wrapper.
+            stacklevel=4,
+        )
+
+    # ------------------------------------------------------------- validation
+    def _resolve_window(self):
+        if self.window == "auto":
+            return max(AUTO_WINDOW_MIN, AUTO_WINDOW_PER_COEFFICIENT * (self.degree + 1))
+        if self.method == "polynomial" and self.window <= self.degree:
+            raise ValueError(
+                f"window={self.window} must exceed degree={self.degree}: a polynomial of "
+                f"degree {self.degree} needs at least {self.degree + 1} samples (several "
+                f"times as many to average out noise). Raise `window` or lower `degree`."
+            )
+        return int(self.window)
 
     def _check(self, X, reset=True):
-        if self.dt is None:
-            raise ValueError(
-                "DerivativeTransformer needs the sampling step: pass dt, e.g. "
-                "DerivativeTransformer(dt=0.01)."
-            )
+        """Validated trajectories: lists of times and of states, and the container kind."""
         if self.method == "finite_difference":
             min_times, why = 3, "second-order finite differences need at least 3 samples"
         else:
@@ -218,7 +313,12 @@ class DerivativeTransformer(TransformerMixin, BaseEstimator):
             if "sample(s)" in str(error):
                 raise ValueError(f"{error} Here {why}.") from None
             raise
-        n_states = trajectories[0].shape[1]
+        if self.dt is None:
+            times, states = self._split_times(trajectories)
+        else:
+            states = trajectories
+            times = [self.dt * np.arange(S.shape[0]) for S in states]
+        n_states = states[0].shape[1]
         check_n_states(n_states)
         if reset:
             self.n_features_in_ = n_states
@@ -227,7 +327,29 @@ class DerivativeTransformer(TransformerMixin, BaseEstimator):
                 f"X has {n_states} state variables, but DerivativeTransformer was "
                 f"fitted with {self.n_features_in_}."
             )
-        return trajectories, is_array
+        return times, states, is_array
+
+    def _split_times(self, trajectories):
+        width = trajectories[0].shape[1]
+        if width % 2 == 0:
+            raise ValueError(
+                f"DerivativeTransformer(dt=None) reads each trajectory's time stamps from "
+                f"its first column, followed by the states (1 + n_states columns, an odd "
+                f"number); X has {width} columns. Either pass the sampling step of "
+                f"uniformly sampled states, e.g. DerivativeTransformer(dt=0.01), or "
+                f"prepend the time stamps as the first column."
+            )
+        times = [T[:, 0] for T in trajectories]
+        for k, t in enumerate(times):
+            steps = np.diff(t)
+            if np.any(steps <= 0):
+                i = int(np.flatnonzero(steps <= 0)[0])
+                raise ValueError(
+                    f"X[{k}]: the time stamps (first column, as dt=None) must be strictly "
+                    f"increasing; sample {i + 1} has t={float(t[i + 1])!r} after "
+                    f"t={float(t[i])!r}. Sort the samples and drop repeated times."
+                )
+        return times, [T[:, 1:] for T in trajectories]
 
     def __sklearn_tags__(self):
         tags = super().__sklearn_tags__()

@@ -18,8 +18,13 @@ import math
 
 import numpy as np
 
-# Entries of one design block (float64): 20 million is 160 MB.
-BLOCK_ENTRIES = 20_000_000
+from ._space.workspace import scratch
+
+# Entries of one design block (float64): 8 million is 64 MB, held in the
+# thread's workspace; that gives every rank-k BLAS update of the Gram matrix
+# thousands of rows, which it needs to run near peak speed (measured on
+# double-pendulum fits: 16 MB blocks took 15 % longer).
+BLOCK_ENTRIES = 8_000_000
 
 
 class TrainingData:
@@ -108,7 +113,45 @@ def _rows_per_block(width):
     return max(1, BLOCK_ENTRIES // max(1, width))
 
 
-def hamiltonian_blocks(space, data, fit_on, n_nodes, damping=False):
+def _averaged_gradients(space, x0, dx, n_nodes, out):
+    """Write ``int_0^1 grad phi(x0 + s dx) ds`` (terms-major) into ``out``."""
+    nodes, weights = segment_nodes(n_nodes)
+    node_values = scratch("design.node", out.shape)
+    for k, (s, w) in enumerate(zip(nodes, weights)):
+        target = out if k == 0 else node_values
+        space.gradients_t(x0 + s * dx, out=target)
+        target *= w
+        if k:
+            out += target
+
+
+def column_groups(space, damping=False):
+    """Columns of the Hamiltonian design that can be nonzero in the rows of each variable.
+
+    ``d phi_j / d x_i`` vanishes wherever ``phi_j`` does not depend on
+    ``x_i`` (its column of variable ``i`` is the constant one), so the rows
+    of variable ``i`` touch only the functions that depend on it, plus the
+    damping column of degree of freedom ``k`` in the rows of ``q_k``. The
+    normal matrix is then a sum of one smaller Gram matrix per variable: for
+    total-degree sets in four variables, half the work of the dense one.
+
+    Returns
+    -------
+    groups : list of ndarray of int
+        Per state variable, the sorted column indices.
+    """
+    m, n_terms = space.n_states, space.n_terms
+    d = m // 2
+    groups = []
+    for i in range(m):
+        columns = np.flatnonzero(space.columns[:, i] != 0)
+        if damping and i >= d:
+            columns = np.append(columns, n_terms + i - d)
+        groups.append(columns)
+    return groups
+
+
+def hamiltonian_blocks(space, data, fit_on, n_nodes, damping=False, grouped=False):
     """Row blocks ``(A, b)`` of the structure-preserving fit.
 
     Each state (or step) gives ``n_states`` rows, ``grad phi(x) . c ≈ J dx/dt``
@@ -116,44 +159,110 @@ def hamiltonian_blocks(space, data, fit_on, n_nodes, damping=False):
     follow the basis: in the row of ``-dp_i/dt`` the observed ``dq_i/dt``,
     so that ``-dp/dt = dH/dq + gamma * dq/dt`` is linear in ``(c, gamma)``.
 
+    Within a block the rows are ordered by state variable, then by sample.
+    A block is a view of the thread's workspace (a Fortran-ordered matrix, as
+    LAPACK and the BLAS rank-k update want it): it is valid until the next
+    block is requested.
+
+    With ``grouped``, each block is split by state variable ``i`` into the
+    columns of ``column_groups(space, damping)[i]`` (the others are zero in
+    those rows), yielded as ``(A_i, b_i, i)``.
+
     Yields
     ------
-    A : ndarray of shape (n_rows, n_terms [+ d])
-    b : ndarray of shape (n_rows,)
+    A : ndarray of shape (n_rows, n_terms [+ d]) or (n_rows_i, n_group_i)
+    b : ndarray of shape (n_rows,) or (n_rows_i,)
     """
+    groups = column_groups(space, damping) if grouped else None
+    if grouped and space.layout.dense:
+        yield from _grouped_blocks(space, data, fit_on, n_nodes, damping, groups)
+        return
     m, n_terms = space.n_states, space.n_terms
     d = m // 2
-    width = m * (n_terms + (d if damping else 0))
+    n_columns = n_terms + (d if damping else 0)
     if fit_on == "steps":
         x0, dx, dt, weight = data.steps(space)
         rate = dx / dt[:, None]
-
-        def basis(rows):
-            return averaged(space.gradients, x0[rows], dx[rows], n_nodes)
     else:
         x0, rate, weight = data.states, data.derivatives, data.sample_weight
-
-        def basis(rows):
-            return space.gradients(x0[rows])
-    step = _rows_per_block(width)
+    step = _rows_per_block(m * n_columns)
     for start in range(0, x0.shape[0], step):
         rows = slice(start, start + step)
-        G = basis(rows)  # (n, m, n_terms)
-        targets = symplectic_targets(rate[rows])
+        n = x0[rows].shape[0]
+        # Terms-major: (column, variable, sample), so that A = block.T.
+        block = scratch("design.block", (n_columns, m, n))
+        if fit_on == "steps":
+            _averaged_gradients(space, x0[rows], dx[rows], n_nodes, block[:n_terms])
+        else:
+            space.gradients_t(x0[rows], out=block[:n_terms])
+        targets = symplectic_targets(rate[rows]).T  # (variable, sample)
         if damping:
-            extra = np.zeros(G.shape[:2] + (d,))
+            block[n_terms:] = 0.0
             idx = np.arange(d)
-            extra[:, d + idx, idx] = rate[rows][:, d:]  # observed dq/dt in the -dp/dt rows
-            G = np.concatenate([G, extra], axis=2)
+            block[n_terms + idx, d + idx] = rate[rows][:, d:].T  # observed dq/dt in the -dp/dt rows
         if weight is not None:
             root = np.sqrt(weight[rows])
-            G = G * root[:, None, None]
-            targets = targets * root[:, None]
-        yield G.reshape(-1, G.shape[2]), targets.ravel()
+            block *= root
+            targets = targets * root
+        if not grouped:
+            yield block.reshape(n_columns, m * n).T, targets.ravel()
+            continue
+        for i, columns in enumerate(groups):
+            part = scratch("design.group", (columns.size, n))
+            np.take(block[:, i, :], columns, axis=0, out=part, mode="clip")
+            yield part.T, targets[i], i
+
+
+def _grouped_blocks(space, data, fit_on, n_nodes, damping, groups):
+    """:func:`hamiltonian_blocks` with ``grouped``, assembled group by group (dense layouts).
+
+    Each variable's rows are computed for the functions that depend on it
+    only, straight into the group's block: no full block is formed.
+    """
+    m, n_terms = space.n_states, space.n_terms
+    d = m // 2
+    if fit_on == "steps":
+        x0, dx, dt, weight = data.steps(space)
+        rate = dx / dt[:, None]
+        nodes, node_weights = segment_nodes(n_nodes)
+    else:
+        x0, rate, weight = data.states, data.derivatives, data.sample_weight
+    basis = [g[g < n_terms] for g in groups]
+    step = _rows_per_block(sum(g.size for g in groups))
+    for start in range(0, x0.shape[0], step):
+        rows = slice(start, start + step)
+        n = x0[rows].shape[0]
+        blocks = [scratch(f"design.group{i}", (g.size, n)) for i, g in enumerate(groups)]
+        outs = [block[: b.size] for block, b in zip(blocks, basis)]
+        if fit_on == "steps":
+            node_outs = [scratch(f"design.node{i}", out.shape) for i, out in enumerate(outs)]
+            for k, (s, w) in enumerate(zip(nodes, node_weights)):
+                space.gradient_rows_t(x0[rows] + s * dx[rows], basis, outs if k == 0 else node_outs)
+                for out, node_out in zip(outs, node_outs):
+                    if k == 0:
+                        out *= w
+                    else:
+                        node_out *= w
+                        out += node_out
+        else:
+            space.gradient_rows_t(x0[rows], basis, outs)
+        targets = symplectic_targets(rate[rows]).T  # (variable, sample)
+        if damping:
+            for i in range(d, m):
+                blocks[i][-1] = rate[rows, i]  # observed dq/dt in the -dp/dt rows
+        if weight is not None:
+            root = np.sqrt(weight[rows])
+            targets = targets * root
+            for block in blocks:
+                block *= root
+        for i, block in enumerate(blocks):
+            yield block.T, targets[i], i
 
 
 def vector_field_blocks(space, data, fit_on, n_nodes):
     """Row blocks ``(A, b)`` of the component-wise fit: ``phi(x) . C ≈ dx/dt``.
+
+    A block is a Fortran-ordered view, valid until the next one is requested.
 
     Yields
     ------
@@ -165,21 +274,21 @@ def vector_field_blocks(space, data, fit_on, n_nodes):
         rate = dx / dt[:, None]
 
         def basis(rows):
-            return averaged(space.values, x0[rows], dx[rows], n_nodes)
+            return averaged(space.values_t, x0[rows], dx[rows], n_nodes)
     else:
         x0, rate, weight = data.states, data.derivatives, data.sample_weight
 
         def basis(rows):
-            return space.values(x0[rows])
-    step = _rows_per_block(space.n_terms * space.n_states)
+            return space.values_t(x0[rows])
+    step = _rows_per_block(space.n_terms)
     for start in range(0, x0.shape[0], step):
         rows = slice(start, start + step)
-        A, b = basis(rows), rate[rows]
+        At, b = basis(rows), rate[rows]
         if weight is not None:
             root = np.sqrt(weight[rows])
-            A = A * root[:, None]
+            At = At * root
             b = b * (root if b.ndim == 1 else root[:, None])
-        yield A, b
+        yield At.T, b
 
 
 def quadrature_nodes(space, of_gradient=True, extra_for_periodic=4):

@@ -7,8 +7,10 @@ from sklearn.utils.validation import check_is_fitted
 
 from ._base import BaseTrajectoryRegressor
 from ._conservation import energy_trend
-from ._design import hamiltonian_blocks, quadrature_nodes
+from ._design import column_groups, hamiltonian_blocks, quadrature_nodes
+from ._design_operator import DesignOperator
 from ._integrate import Dynamics, apply_structure
+from ._solvers import NormalEquations
 from ._space import ModelSpace
 from ._trajectories import check_n_states
 from .exceptions import ConservationWarning
@@ -74,11 +76,22 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
         Add linear friction, ``dp/dt = -dH~/dq - gamma * dq/dt``, with one
         ``gamma >= 0`` per degree of freedom fitted jointly with ``H~`` by the
         same least squares (the friction term uses the observed ``dq/dt``).
-    solver : {"auto", "lstsq", "normal"}, default="auto"
+    solver : {"auto", "lstsq", "normal", "iterative"}, default="auto"
         ``"lstsq"`` factorizes the whole (column-equilibrated) design with an
-        SVD; ``"normal"`` streams it in blocks into the normal equations, with
-        memory independent of the number of samples. ``"auto"`` picks
-        ``"lstsq"`` while the design holds at most 5e7 entries.
+        SVD. ``"normal"`` streams it in blocks into the normal equations
+        (memory independent of the number of samples), solves them by
+        Cholesky and refines the solution against the design, which matches
+        ``"lstsq"`` unless the condition number exceeds about 1e7.
+        ``"iterative"`` never forms the normal matrix: conjugate gradients with
+        the design applied as an operator, preconditioned by the basis' Gram
+        matrix under the uniform measure on the box (fast when the samples
+        cover the box evenly). ``"auto"`` picks ``"lstsq"`` while the design
+        holds at most 5e7 entries, ``"normal"`` beyond, and ``"iterative"``
+        from 10 000 unknowns on (falling back to ``"normal"`` if it does not
+        converge). See :ref:`scaling`.
+    verbose : int, default=0
+        Print the progress of long fits (blocks accumulated, iterations and
+        their residual) when positive; silent by default.
 
     Attributes
     ----------
@@ -97,13 +110,16 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
     damping_ : ndarray of shape (n_dof,)
         Fitted friction coefficients ``gamma`` (zeros with ``damping=False``).
     cond_ : float
-        Condition number of the column-equilibrated least-squares design.
+        Condition number of the column-equilibrated least-squares design
+        (estimated with ``solver="iterative"`` and beyond 1 500 unknowns with
+        ``"normal"``).
     rank_ : int
         Numerical rank of that design.
     n_terms_ : int
         Number of fitted unknowns: ``n_basis``, plus ``n_dof`` with damping.
     solver_ : str
-        The solver used.
+        The solver used (``"normal"`` after :meth:`partial_fit` or a fit on
+        dask arrays).
     dt_ : float
         Median time step of the training trajectories (NaN when fitted on
         2-D states); the AVF step of a model fitted on steps.
@@ -162,12 +178,12 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
     def __init__(
         self, degree=3, *, domain=None, periodic=None, momentum_degree=None,
         separable=False, max_interaction=None, fit_on="derivatives", damping=False,
-        solver="auto",
+        solver="auto", verbose=0,
     ):
         super().__init__(
             degree, domain=domain, periodic=periodic, momentum_degree=momentum_degree,
             separable=separable, max_interaction=max_interaction, fit_on=fit_on,
-            solver=solver,
+            solver=solver, verbose=verbose,
         )
         self.damping = damping
 
@@ -200,19 +216,32 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
                 f"(momentum_degree, separable, max_interaction)."
             )
 
-    def _fit_coef(self, data):
+    def _design_blocks(self, data, grouped=False):
         space = self._space
-        d = space.n_states // 2
-        n_extra = d if self.damping else 0
-        coef, self.cond_, self.rank_ = self._solve_blocks(
-            lambda: hamiltonian_blocks(
-                space, data, self.fit_on, quadrature_nodes(space), damping=self.damping
-            ),
-            space.n_terms + n_extra,
-            n_nonnegative=n_extra,
+        return hamiltonian_blocks(
+            space, data, self.fit_on, quadrature_nodes(space), damping=self.damping,
+            grouped=grouped,
         )
+
+    def _normal_accumulator(self):
+        return NormalEquations(self._n_unknowns(), column_groups(self._space, self.damping))
+
+    def _design_operator(self, data):
+        space = self._space
+        return DesignOperator(
+            space, data, self.fit_on, quadrature_nodes(space), "gradient", damping=self.damping
+        )
+
+    def _n_unknowns(self):
+        return self._space.n_terms + self._n_nonnegative()
+
+    def _n_nonnegative(self):
+        return self._space.n_states // 2 if self.damping else 0
+
+    def _set_solution(self, coef):
+        space = self._space
         self.coef_ = coef[: space.n_terms]
-        self.damping_ = coef[space.n_terms :] if self.damping else np.zeros(d)
+        self.damping_ = coef[space.n_terms :] if self.damping else np.zeros(space.n_states // 2)
         self._split = self._separable_parts() if self.separable else None
 
     def _n_fitted(self):
@@ -238,8 +267,11 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
         self.energy_trend_, self.energy_trend_z_ = float("nan"), float("nan")
         if data.trajectories is None:
             return
+        # H~ at every training state in one batch, then split by trajectory.
+        lengths = [S.shape[0] for _, S in data.trajectories]
+        energies = np.split(self._hamiltonian(data.states), np.cumsum(lengths)[:-1])
         self.energy_trend_, self.energy_trend_z_ = energy_trend(
-            [(t, self._hamiltonian(S)) for t, S in data.trajectories]
+            [(t, H) for (t, _), H in zip(data.trajectories, energies)]
         )
         if not np.isfinite(self.energy_trend_z_):
             return

@@ -1,108 +1,44 @@
-"""Pieces of the ``sk-hamiltonian`` command: data files and the figure."""
-
-import os
+"""Pieces of the ``sk-hamiltonian`` command: its error type, printed lines and the figure."""
 
 import numpy as np
+
+
+from ._hamiltonian import TREND_Z
 
 
 class UsageError(Exception):
     """A problem with the command line or the user's file: one line, exit code 2."""
 
 
-def default_state_names(n_states):
-    d = n_states // 2
-    if d == 1:
-        return ["p", "q"]
-    return [f"p{i + 1}" for i in range(d)] + [f"q{i + 1}" for i in range(d)]
+def describe_energy_trend(model):
+    """One line: the trend of the learned energy along the data, and what it suggests."""
+    rate, z = model.energy_trend_, model.energy_trend_z_
+    if not (np.isfinite(rate) and np.isfinite(z)):
+        return "energy trend of H~ along the data: not available (too few samples)"
+    if abs(z) <= TREND_Z:
+        verdict = "no significant trend: the data look conservative"
+    elif z < 0:
+        verdict = (
+            "H~ falls along the data: they look dissipative (friction), which a conservative "
+            "model cannot follow; HamiltonianRegressor(damping=True) can"
+        )
+    else:
+        verdict = (
+            "H~ rises along the data: they look driven, or the model misses part of the "
+            "dynamics"
+        )
+    return (
+        f"energy trend of H~ along the data: {rate:+.2%} of its spread per unit time "
+        f"(z = {z:.1f}): {verdict}"
+    )
 
 
-def load_trajectories(path):
-    """Read trajectories from ``.npz`` or ``.csv``; return (X, state names).
+def draw_report(path, t, curves, truth, errors, model, rk4, avf, observed, names, title):
+    """Write the four-panel figure of the command's report to ``path``.
 
-    ``.npz``: the array under key ``trajectories``, or the only array, of shape
-    (n_trajectories, n_times, 2d). ``.csv``: a header line, then one row per
-    sample with the columns ``trajectory, p_1..p_d, q_1..q_d`` (the trajectory
-    id first; rows of a trajectory in time order). Trajectories in a CSV may
-    have different lengths; they are returned as a list.
+    ``observed`` is ``(times, states)``: the time stamps of the first
+    trajectory relative to its start, and the states of every trajectory.
     """
-    if not os.path.isfile(path):
-        raise UsageError(f"file not found: {path}")
-    suffix = os.path.splitext(path)[1].lower()
-    if suffix == ".npz":
-        return _load_npz(path)
-    if suffix == ".csv":
-        return _load_csv(path)
-    raise UsageError(f"unsupported file type {suffix or '(none)'!r} for {path}: use .npz or .csv")
-
-
-def _check_states(n_states, path):
-    if n_states < 2 or n_states % 2:
-        raise UsageError(
-            f"{path}: found {n_states} state column(s); a Hamiltonian system needs an even "
-            f"number, ordered p_1..p_d, q_1..q_d"
-        )
-
-
-def _load_npz(path):
-    try:
-        with np.load(path, allow_pickle=False) as archive:
-            keys = list(archive.keys())
-            if "trajectories" in archive:
-                X = archive["trajectories"]
-            elif len(keys) == 1:
-                X = archive[keys[0]]
-            else:
-                raise UsageError(
-                    f"{path} holds arrays {keys}: name the trajectories array 'trajectories'"
-                )
-    except UsageError:
-        raise
-    except Exception as error:  # a corrupt archive: report it in one line
-        raise UsageError(f"cannot read {path} as .npz: {error}") from None
-    if X.ndim != 3:
-        raise UsageError(
-            f"{path}: the array has shape {X.shape}; expected (n_trajectories, n_times, 2d) "
-            f"(for a single trajectory T, save T[None])"
-        )
-    if not np.issubdtype(X.dtype, np.number):
-        raise UsageError(f"{path}: the array is not numeric (dtype {X.dtype})")
-    _check_states(X.shape[2], path)
-    if not np.isfinite(X).all():
-        raise UsageError(f"{path}: the trajectories contain NaN or infinity")
-    return X.astype(float), default_state_names(X.shape[2])
-
-
-def _load_csv(path):
-    with open(path, encoding="utf-8") as stream:
-        header = stream.readline().strip()
-    names = [name.strip() for name in header.split(",")]
-    if len(names) < 3 or names[0].lower() != "trajectory":
-        raise UsageError(
-            f"{path}: the header must read 'trajectory,<p_1>,..,<p_d>,<q_1>,..,<q_d>'; "
-            f"got {header[:60]!r}"
-        )
-    _check_states(len(names) - 1, path)
-    try:
-        data = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
-    except ValueError as error:
-        raise UsageError(f"{path}: not a numeric CSV after the header ({error})") from None
-    if data.shape[1] != len(names):
-        raise UsageError(f"{path}: rows have {data.shape[1]} columns, the header {len(names)}")
-    if not np.isfinite(data).all():
-        raise UsageError(f"{path}: the data contain NaN or infinity")
-    ids = data[:, 0]
-    # Keep the order of first appearance; a trajectory's rows must be contiguous.
-    starts = np.flatnonzero(np.r_[True, ids[1:] != ids[:-1]])
-    if np.unique(ids).size != starts.size:
-        raise UsageError(f"{path}: the rows of each trajectory must be contiguous")
-    pieces = np.split(data[:, 1:], starts[1:])
-    lengths = {piece.shape[0] for piece in pieces}
-    X = np.stack(pieces) if len(lengths) == 1 else pieces
-    return X, names[1:]
-
-
-def draw_report(path, t, curves, truth, errors, model, rk4, avf, X, names, title):
-    """Write the four-panel figure of the command's report to ``path``."""
     # A bare Figure, not pyplot: no GUI backend, no global state touched.
     from matplotlib.figure import Figure
 
@@ -118,16 +54,17 @@ def draw_report(path, t, curves, truth, errors, model, rk4, avf, X, names, title
         Y = np.where(np.arange(len(t))[:, None] < ok, Y, np.nan)
         shown[label] = Y
     plot_trajectories(t, shown, state_names=names, ax=axes[0, 0])
+    times, states = observed
     if truth is None:
         # The rollouts start at the first observation of trajectory 0: show
         # the observations they should follow.
-        first = np.asarray(X[0])[: len(t)]
+        shown_times = times <= t[-1]
+        first = np.asarray(states[0])[shown_times]
         for i in range(first.shape[1]):
-            axes[0, 0].plot(t[: len(first)], first[:, i], ".", color=f"C{i}", ms=3)
+            axes[0, 0].plot(times[shown_times], first[:, i], ".", color=f"C{i}", ms=3)
     title_0 = " vs the true system" if truth is not None else " (dots: observations)"
     axes[0, 0].set_title("trajectories" + title_0)
-    observed = np.concatenate([np.asarray(T) for T in X])
-    plot_phase(shown, state_names=names, ax=axes[0, 1], scatter=observed)
+    plot_phase(shown, state_names=names, ax=axes[0, 1], scatter=np.concatenate(states))
     axes[0, 1].set_title("phase plot (first degree of freedom)")
     ax = axes[1, 0]
     if errors:

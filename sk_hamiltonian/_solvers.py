@@ -1,41 +1,119 @@
 """Least-squares solvers shared by the regressors.
 
-Both solvers equilibrate the columns of the design (divide each by its norm)
-before solving, which removes most of the growth of the Legendre gradients with
-the degree, and report the condition number of the equilibrated design.
+Every solver equilibrates the columns of the design (divides each by its
+norm), which removes most of the growth of the Legendre gradients with the
+degree, and reports the condition number of the equilibrated design.
 
-``"lstsq"`` factorizes the whole design with an SVD-based LAPACK driver: the
-most accurate choice, at the memory cost of the design itself. ``"normal"``
-streams the design in blocks of rows and accumulates the normal equations, so
-memory is ``O(n_terms**2)`` whatever the number of samples; it squares the
-condition number, which is harmless while that stays well below ``1e8``.
+``"lstsq"``
+    Factorizes the whole design with an SVD-based LAPACK driver: the most
+    accurate choice, at the memory cost of the design itself and ``O(rows *
+    n_terms**2)`` work with a large constant.
+``"normal"``
+    Streams the design in blocks into the normal equations (an in-place BLAS
+    rank-k update per block), factorizes them by Cholesky and refines the
+    solution against the design, so that the result matches ``"lstsq"`` while
+    the design's condition number stays below about ``1e7``; where the
+    factorization fails or rank is lost it falls back to an eigen
+    pseudo-inverse with ``lstsq``'s cut-off. Memory is ``O(n_terms**2)``
+    whatever the number of samples; the time is one Gram matrix, the bound of
+    every dense method.
+``"iterative"``
+    Never forms the Gram matrix: conjugate gradients on the normal equations
+    (CGLS), with the design applied as an operator (:mod:`._design_operator`,
+    a few times cheaper per pass than the explicit design) and preconditioned
+    by the *closed-form* Gram matrix of the basis under the uniform measure on
+    the box, which the empirical one approaches when the samples cover the box
+    evenly (the paper's setting). The cost is a Cholesky factorization of that
+    ``n_terms x n_terms`` matrix plus two operator applications per iteration.
+    Its condition number is an estimate (an upper bound, from the
+    preconditioner and the iteration's Ritz values).
+
+:func:`choose_solver` resolves ``"auto"`` by size; the choices are measured in
+``benchmarks/bench_scale.py`` and explained in the documentation (Solvers and
+scaling).
 """
 
+import math
 import warnings
 
 import numpy as np
 from scipy import linalg
+from scipy.linalg import blas
+from sklearn.exceptions import ConvergenceWarning
 
 from .exceptions import IllConditionedWarning
 
-# Designs up to this many entries (400 MB in float64) are factorized whole.
+# Designs up to this many entries (400 MB in float64) are factorized whole by
+# "auto" (today's answers on small problems, to round-off).
 DENSE_MAX_ENTRIES = 50_000_000
+# From this many unknowns on, "auto" solves by conjugate gradients. Measured
+# on the double pendulum (benchmarks/bench_scale.py): one iteration costs
+# 1/13 of the (grouped) Gram matrix at n = 14 (3 059 unknowns) and 1/100 at
+# n = 18 (7 314), while the closed-form preconditioner needs 100-200
+# iterations, so the Gram matrix wins below about 10 000 unknowns.
+ITERATIVE_MIN_TERMS = 10_000
+# Reciprocal condition number of the equilibrated normal matrix below which
+# Cholesky is not trusted and the eigen pseudo-inverse is used (the design's
+# condition number above 1e7: refinement would then gain little).
+CHOLESKY_RCOND = 1e-14
+# Refinement steps against the design after a Cholesky solve, stopped early
+# once a correction is below REFINED relative to the solution.
+REFINEMENT_STEPS = 3
+REFINED = 1e-12
+# Up to this many unknowns, the condition number of the normal matrix is
+# computed exactly (eigvalsh); beyond, estimated by power and inverse iteration.
+EXACT_COND_MAX = 1500
+# Conjugate gradients: relative (preconditioned) normal-residual tolerance and
+# iteration cap.
+CG_RTOL = 1e-11
+CG_MAX_ITER = 400
 
 
 def choose_solver(solver, n_rows, n_terms):
-    """Resolve ``solver="auto"`` from the size of the design."""
+    """Resolve ``solver="auto"`` from the size of the design.
+
+    Parameters
+    ----------
+    solver : {"auto", "lstsq", "normal", "iterative"}
+        The requested solver.
+    n_rows, n_terms : int
+        Shape of the design.
+
+    Returns
+    -------
+    solver : str
+        ``"lstsq"`` up to ``DENSE_MAX_ENTRIES`` entries; beyond, ``"normal"``,
+        and ``"iterative"`` from ``ITERATIVE_MIN_TERMS`` unknowns on, where
+        the Gram matrix costs more than the iterations it saves (and more
+        memory than is reasonable).
+    """
     if solver != "auto":
         return solver
-    return "lstsq" if n_rows * n_terms <= DENSE_MAX_ENTRIES else "normal"
+    if n_rows * n_terms <= DENSE_MAX_ENTRIES:
+        return "lstsq"
+    return "iterative" if n_terms >= ITERATIVE_MIN_TERMS else "normal"
 
 
+def _column_norms(squared):
+    norms = np.sqrt(squared)
+    # An all-zero column (a basis function with no data) keeps its scale; the
+    # rank deficiency is reported through ``rank``.
+    norms[norms == 0] = 1.0
+    return norms
+
+
+def _scale(x, norms):
+    return x / (norms if x.ndim == 1 else norms[:, None])
+
+
+# ----------------------------------------------------------------- lstsq
 def solve_dense(A, b):
     """Least squares on a design held in memory.
 
     Parameters
     ----------
     A : ndarray of shape (n_rows, n_terms)
-        Design matrix; it is overwritten.
+        Design matrix (Fortran order avoids a copy); it is overwritten.
     b : ndarray of shape (n_rows,) or (n_rows, n_targets)
         Right-hand side(s).
 
@@ -56,10 +134,91 @@ def solve_dense(A, b):
         A, b, cond=cutoff, lapack_driver="gelsd", check_finite=False
     )
     cond = singular[0] / singular[-1] if singular[-1] > 0 else np.inf
-    return coef / (norms if coef.ndim == 1 else norms[:, None]), float(cond), int(rank)
+    return _scale(coef, norms), float(cond), int(rank)
 
 
-def normal_equations(blocks, n_terms):
+def stack_blocks(blocks, n_columns):
+    """The whole design and right-hand side from row blocks, the design in Fortran order."""
+    columns, rhs = [], []
+    for A, b in blocks:
+        # Blocks may be views of a reused buffer: copy each one as it comes.
+        columns.append(np.array(A.T, order="C"))
+        rhs.append(np.array(b))
+    A = np.concatenate(columns, axis=1).T if columns else np.zeros((0, n_columns))
+    return A, np.concatenate(rhs)
+
+
+# ---------------------------------------------------------------- normal
+def symmetric_from_upper(upper):
+    """The symmetric matrix whose upper triangle is ``upper``."""
+    full = np.triu(upper)
+    return full + np.triu(full, 1).T
+
+
+class NormalEquations:
+    """``A^T A`` and ``A^T b`` accumulated over row blocks, by column groups.
+
+    Rows of different kinds may touch different columns only (see
+    :func:`~sk_hamiltonian._design.column_groups`): a block of group ``g``
+    holds only the columns ``groups[g]``, and each group keeps its own
+    (smaller) Gram matrix, updated in place by a BLAS rank-k update; the
+    groups are scattered into one matrix at the end. With one group of all
+    columns this is the plain accumulation.
+
+    Parameters
+    ----------
+    n_columns : int
+        Columns of the design.
+    groups : list of ndarray of int, default=None
+        Column indices of each group; None: one group of all columns.
+    """
+
+    def __init__(self, n_columns, groups=None):
+        self.n_columns = n_columns
+        self.groups = [np.arange(n_columns)] if groups is None else list(groups)
+        self.grams = [np.zeros((g.size, g.size), order="F") for g in self.groups]
+        self.rhs = None
+        self.n_rows = 0
+
+    def add(self, A, b, group=0):
+        """Add a row block ``A`` (columns ``groups[group]``) and its right-hand side ``b``."""
+        blas.dsyrk(1.0, np.asfortranarray(A), beta=1.0, c=self.grams[group], trans=1,
+                   lower=0, overwrite_c=1)
+        if self.rhs is None:
+            self.rhs = np.zeros((self.n_columns,) + b.shape[1:])
+        self.rhs[self.groups[group]] += A.T @ b
+        self.n_rows += A.shape[0]
+
+    def add_blocks(self, blocks, progress=None):
+        """Add every block of an iterable of ``(A, b)`` or ``(A, b, group)``."""
+        for k, block in enumerate(blocks):
+            self.add(*block)
+            if progress is not None:
+                progress(k + 1, self.n_rows)
+        return self
+
+    def __iadd__(self, other):
+        """Add another accumulator with the same groups (e.g. from another chunk)."""
+        for mine, theirs in zip(self.grams, other.grams):
+            mine += theirs
+        if other.rhs is not None:
+            self.rhs = other.rhs.copy() if self.rhs is None else self.rhs + other.rhs
+        self.n_rows += other.n_rows
+        return self
+
+    def result(self):
+        """The accumulated ``(A^T A, A^T b)``."""
+        if len(self.groups) == 1 and self.groups[0].size == self.n_columns:
+            gram = symmetric_from_upper(self.grams[0])
+        else:
+            gram = np.zeros((self.n_columns, self.n_columns))
+            for columns, upper in zip(self.groups, self.grams):
+                gram[np.ix_(columns, columns)] += symmetric_from_upper(upper)
+        rhs = np.zeros(self.n_columns) if self.rhs is None else self.rhs
+        return gram, rhs
+
+
+def normal_equations(blocks, n_terms, progress=None):
     """Accumulate ``A^T A`` and ``A^T b`` over row blocks of a design.
 
     Parameters
@@ -70,23 +229,62 @@ def normal_equations(blocks, n_terms):
         ``(n_rows_k, n_targets)``.
     n_terms : int
         Number of columns.
+    progress : callable, default=None
+        Called as ``progress(k, n_rows)`` after block ``k``.
 
     Returns
     -------
     gram : ndarray of shape (n_terms, n_terms)
     rhs : ndarray of shape (n_terms,) or (n_terms, n_targets)
     """
-    gram = np.zeros((n_terms, n_terms))
-    rhs = None
-    for A, b in blocks:
-        gram += A.T @ A
-        contribution = A.T @ b
-        rhs = contribution if rhs is None else rhs + contribution
-    return gram, rhs
+    return NormalEquations(n_terms).add_blocks(blocks, progress).result()
 
 
-def solve_normal(gram, rhs):
-    """Least squares from its normal equations, by an eigen pseudo-inverse.
+def _extreme_eigenvalues(G, factor, n_iter=30, seed=0):
+    """Estimates of the largest and smallest eigenvalues of SPD ``G`` (Cholesky ``factor``)."""
+    rng = np.random.default_rng(seed)
+    v = rng.standard_normal(G.shape[0])
+    w = v.copy()
+    largest = smallest_inverse = 0.0
+    for _ in range(n_iter):
+        v = G @ v
+        largest = np.linalg.norm(v)
+        v /= largest
+        w = linalg.cho_solve(factor, w, check_finite=False)
+        smallest_inverse = np.linalg.norm(w)
+        w /= smallest_inverse
+    return largest, 1.0 / smallest_inverse
+
+
+def _normal_condition(G, factor):
+    """2-norm condition number of the design from its equilibrated normal matrix ``G``."""
+    if G.shape[0] <= EXACT_COND_MAX:
+        eigenvalues = linalg.eigvalsh(G, check_finite=False)
+        return math.sqrt(eigenvalues[-1] / eigenvalues[0]) if eigenvalues[0] > 0 else np.inf
+    largest, smallest = _extreme_eigenvalues(G, factor)
+    return math.sqrt(largest / smallest)
+
+
+def _eigen_solve(G, rhs):
+    """Pseudo-inverse solve with ``lstsq``'s relative cut-off; (solution, cond, rank)."""
+    eigenvalues, eigenvectors = linalg.eigh(G, check_finite=False)
+    # Eigenvalues of the normal matrix are squared singular values of the
+    # design, but forming it rounds them by about eps * N * largest: below
+    # that they are noise (a singular value below sqrt(eps * N) relative is
+    # not resolved by the normal equations; lstsq would resolve it).
+    cutoff = eigenvalues[-1] * np.finfo(float).eps * max(G.shape)
+    keep = eigenvalues > cutoff
+    inverse = np.zeros_like(eigenvalues)
+    inverse[keep] = 1.0 / eigenvalues[keep]
+    weights = inverse if rhs.ndim == 1 else inverse[:, None]
+    solution = eigenvectors @ ((eigenvectors.T @ rhs) * weights)
+    smallest = eigenvalues[0]
+    cond = math.sqrt(eigenvalues[-1] / smallest) if smallest > 0 else np.inf
+    return solution, cond, int(keep.sum())
+
+
+def solve_normal(gram, rhs, residual=None):
+    """Least squares from its normal equations: Cholesky, refined against the design.
 
     Parameters
     ----------
@@ -94,29 +292,46 @@ def solve_normal(gram, rhs):
         ``A^T A``; not modified.
     rhs : ndarray of shape (n_terms,) or (n_terms, n_targets)
         ``A^T b``.
+    residual : callable, default=None
+        ``residual(coef) -> A^T (b - A coef)``, computed from the design
+        (not from ``gram``); with it, the Cholesky solution is refined
+        ``REFINEMENT_STEPS`` times, which brings it to the accuracy of a
+        QR or SVD solve while the design's condition number is below about
+        ``1e7``. None: no refinement (e.g. ``partial_fit``, whose samples
+        are gone).
 
     Returns
     -------
     coef, cond, rank
         As in :func:`solve_dense`; ``cond`` is the square root of the
-        condition number of the equilibrated normal matrix, that is the
-        condition number of the equilibrated design.
+        condition number of the equilibrated normal matrix (exact up to
+        ``EXACT_COND_MAX`` unknowns, else estimated).
     """
     norms = _column_norms(np.diag(gram).copy())
-    gram = gram / np.outer(norms, norms)
-    rhs = rhs / (norms if rhs.ndim == 1 else norms[:, None])
-    eigenvalues, eigenvectors = linalg.eigh(gram, check_finite=False)
-    # Pseudo-inverse with the same relative cut-off as lstsq: eigenvalues of the
-    # normal matrix are squared singular values of the design.
-    cutoff = eigenvalues[-1] * (np.finfo(float).eps * max(gram.shape)) ** 2
-    keep = eigenvalues > cutoff
-    inverse = np.zeros_like(eigenvalues)
-    inverse[keep] = 1.0 / eigenvalues[keep]
-    coef = eigenvectors @ ((eigenvectors.T @ rhs) * (inverse if rhs.ndim == 1 else inverse[:, None]))
-    smallest = eigenvalues[0]
-    cond = np.sqrt(eigenvalues[-1] / smallest) if smallest > 0 else np.inf
-    coef = coef / (norms if coef.ndim == 1 else norms[:, None])
-    return coef, float(cond), int(keep.sum())
+    G = gram / np.outer(norms, norms)
+    scaled_rhs = _scale(rhs, norms)
+    factor = None
+    try:
+        factor = linalg.cho_factor(G, lower=False, check_finite=False)
+        rcond, info = linalg.lapack.dpocon(factor[0], np.abs(G).sum(axis=0).max())
+        if info != 0 or rcond < CHOLESKY_RCOND:
+            factor = None
+    except linalg.LinAlgError:
+        factor = None
+    if factor is None:
+        solution, cond, rank = _eigen_solve(G, scaled_rhs)
+        return _scale(solution, norms), cond, rank
+    solution = linalg.cho_solve(factor, scaled_rhs, check_finite=False)
+    if residual is not None:
+        for _ in range(REFINEMENT_STEPS):
+            correction = _scale(residual(_scale(solution, norms)), norms)
+            step = linalg.cho_solve(factor, correction, check_finite=False)
+            solution = solution + step
+            # A correction at round-off level means the solve was already
+            # accurate: another pass over the design would change nothing.
+            if np.linalg.norm(step) <= REFINED * np.linalg.norm(solution):
+                break
+    return _scale(solution, norms), _normal_condition(G, factor), G.shape[0]
 
 
 def solve_streaming(blocks, n_terms):
@@ -128,6 +343,105 @@ def solve_streaming(blocks, n_terms):
     return solve_normal(*normal_equations(blocks, n_terms))
 
 
+# ------------------------------------------------------------- iterative
+def _ritz_condition(alphas, betas):
+    """Condition number of the preconditioned normal matrix from CG's coefficients (Lanczos)."""
+    if not alphas:
+        return 1.0
+    a = np.asarray(alphas)
+    b = np.asarray(betas[: len(alphas) - 1])
+    diagonal = 1.0 / a
+    diagonal[1:] += b / a[:-1]
+    off = np.sqrt(b) / a[:-1]
+    ritz = linalg.eigvalsh_tridiagonal(diagonal, off, check_finite=False)
+    return float(ritz[-1] / ritz[0]) if ritz[0] > 0 else np.inf
+
+
+def solve_iterative(operator, keep=None, rtol=CG_RTOL, max_iter=CG_MAX_ITER, progress=None):
+    """Preconditioned conjugate gradients on the normal equations (CGLS).
+
+    Parameters
+    ----------
+    operator : DesignOperator
+        ``matvec``, ``rmatvec``, ``targets`` and ``gram_estimate``.
+    keep : ndarray of shape (n_columns,) of bool, default=None
+        Columns to solve for (the others are zero); None: all.
+    rtol : float, default=CG_RTOL
+        Stop when the preconditioned normal residual has dropped by this
+        factor.
+    max_iter : int, default=CG_MAX_ITER
+        Iteration cap.
+    progress : callable, default=None
+        Called as ``progress(iteration, relative_residual)``.
+
+    Returns
+    -------
+    coef : ndarray of shape (n_columns,) or (n_columns, K)
+        Zero outside ``keep``; 1-D when the operator has one target.
+    cond : float
+        Estimated condition number of the equilibrated design (an upper
+        bound: preconditioner times the Ritz estimate of the preconditioned
+        operator).
+    rank : int
+        Number of columns solved for (the closed-form preconditioner is
+        positive definite, so rank is not measured).
+    converged : bool
+        Whether ``rtol`` was reached within ``max_iter`` iterations.
+    """
+    n = operator.n_columns
+    keep = np.ones(n, dtype=bool) if keep is None else np.asarray(keep, dtype=bool)
+    M = operator.gram_estimate()[np.ix_(keep, keep)]
+    norms = _column_norms(np.diag(M).copy())
+    M_eq = M / np.outer(norms, norms)
+    factor = linalg.cho_factor(M_eq, lower=False, check_finite=False)
+
+    def precondition(s):
+        return _scale(linalg.cho_solve(factor, _scale(s, norms), check_finite=False), norms)
+
+    def full(x):
+        out = np.zeros((n, x.shape[1]))
+        out[keep] = x
+        return out
+
+    b = operator.targets
+    x = np.zeros((int(keep.sum()), b.shape[1]))
+    r = b.copy()
+    s = operator.rmatvec(r)[keep]
+    z = precondition(s)
+    p = z.copy()
+    gamma = np.einsum("ik,ik->k", s, z)
+    gamma0 = np.where(gamma > 0, gamma, 1.0)
+    alphas, betas = [], []
+    converged = bool(np.all(gamma == 0))
+    for iteration in range(max_iter if not converged else 0):
+        q = operator.matvec(full(p))
+        qq = np.einsum("iks,iks->k", q, q)
+        alpha = np.where(qq > 0, gamma / np.where(qq > 0, qq, 1.0), 0.0)
+        x += alpha * p
+        r -= alpha[None, :, None] * q
+        s = operator.rmatvec(r)[keep]
+        z = precondition(s)
+        gamma_new = np.einsum("ik,ik->k", s, z)
+        relative = float(np.sqrt(np.max(gamma_new / gamma0)))
+        beta = np.where(gamma > 0, gamma_new / np.where(gamma > 0, gamma, 1.0), 0.0)
+        alphas.append(float(alpha[0]))
+        betas.append(float(beta[0]))
+        if progress is not None:
+            progress(iteration + 1, relative)
+        if relative <= rtol:
+            converged = True
+            break
+        p = z + beta * p
+        gamma = gamma_new
+    cond_preconditioner = _normal_condition(M_eq, factor) ** 2
+    cond = math.sqrt(cond_preconditioner * _ritz_condition(alphas, betas))
+    coef = full(x)
+    if operator.one_target:
+        coef = coef[:, 0]
+    return coef, cond, int(keep.sum()), converged
+
+
+# ------------------------------------------------------------ constraints
 def solve_nonnegative_tail(solve, n_columns, n_tail):
     """Least squares whose last ``n_tail`` unknowns are constrained to be ``>= 0``.
 
@@ -150,7 +464,9 @@ def solve_nonnegative_tail(solve, n_columns, n_tail):
     coef : ndarray of shape (n_columns,)
         Zero where an unknown was fixed.
     cond, rank
-        Of the last solve.
+        Of the last solve; ``rank`` counts the unknowns fixed at zero too
+        (the constraint determines them), so that a fixed damping is not
+        reported as lost rank.
     """
     keep = np.ones(n_columns, dtype=bool)
     while True:
@@ -159,16 +475,8 @@ def solve_nonnegative_tail(solve, n_columns, n_tail):
         coef[keep] = sub
         tail = coef[n_columns - n_tail :]
         if n_tail == 0 or tail.min() >= 0:
-            return coef, cond, rank
+            return coef, cond, rank + int(np.sum(~keep))
         keep[n_columns - n_tail + int(np.argmin(tail))] = False
-
-
-def _column_norms(squared):
-    norms = np.sqrt(squared)
-    # An all-zero column (a basis function with no data) keeps its scale; the
-    # rank deficiency is reported through ``rank``.
-    norms[norms == 0] = 1.0
-    return norms
 
 
 def warn_if_ill_conditioned(cond, rank, n_terms, estimator_name):
@@ -183,3 +491,14 @@ def warn_if_ill_conditioned(cond, rank, n_terms, estimator_name):
             IllConditionedWarning,
             stacklevel=3,
         )
+
+
+def warn_not_converged(estimator_name, max_iter=CG_MAX_ITER):
+    """Warn when conjugate gradients stopped at the iteration cap."""
+    warnings.warn(
+        f"{estimator_name}: solver='iterative' did not converge in {max_iter} "
+        f"iterations; the samples probably cover the domain unevenly, which "
+        f"weakens its preconditioner. Use solver='normal' (or 'auto').",
+        ConvergenceWarning,
+        stacklevel=3,
+    )

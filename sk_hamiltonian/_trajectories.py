@@ -61,11 +61,17 @@ def check_trajectories(X, *, name="X", min_times=1):
     if isinstance(X, np.ndarray) or not isinstance(X, (list, tuple)):
         array = np.asarray(X)
         if array.ndim != 3:
+            hint = (
+                f" If these are one trajectory T of shape (n_times, n_features), pass "
+                f"T[np.newaxis] or [T]; if they are states at which to evaluate a fitted "
+                f"pipeline's learned vector field, call its last step directly, "
+                f"pipe[-1].predict(states) (the pipeline's first step expects "
+                f"trajectories)." if array.ndim == 2 else ""
+            )
             raise ValueError(
                 f"{name} must be a 3-D array (n_trajectories, n_times, n_features) "
                 f"or a list of 2-D arrays (n_times, n_features); got an array of shape "
-                f"{array.shape}. For a single trajectory T of shape (n_times, "
-                f"n_features), pass T[np.newaxis] or [T]."
+                f"{array.shape}.{hint}"
             )
         trajectories, is_array = list(_as_float(array, name)), True
     else:
@@ -86,11 +92,12 @@ def check_trajectories(X, *, name="X", min_times=1):
             f"The trajectories in {name} have different numbers of features "
             f"{sorted(widths)}; all must have the same."
         )
-    shortest = min(T.shape[0] for T in trajectories)
-    if shortest < min_times:
+    lengths = [T.shape[0] for T in trajectories]
+    shortest = int(np.argmin(lengths))
+    if lengths[shortest] < min_times:
+        which = f"{name}[{shortest}]" if not is_array else f"Every trajectory in {name}"
         raise ValueError(
-            f"A trajectory in {name} has {shortest} sample(s); at least {min_times} "
-            f"are required."
+            f"{which} has {lengths[shortest]} sample(s); at least {min_times} are required."
         )
     for k, T in enumerate(trajectories):
         if not np.isfinite(T).all():

@@ -4,7 +4,9 @@ import numpy as np
 
 from ._base import BaseTrajectoryRegressor
 from ._design import quadrature_nodes, vector_field_blocks
+from ._design_operator import DesignOperator
 from ._integrate import Dynamics
+from ._solvers import NormalEquations
 
 
 class VectorFieldRegressor(BaseTrajectoryRegressor):
@@ -47,8 +49,10 @@ class VectorFieldRegressor(BaseTrajectoryRegressor):
         ``"steps"``: fit ``x1 - x0 = dt int_0^1 f(x0 + s (x1 - x0)) ds`` on the
         observed steps instead of estimated derivatives (derivative layout
         input only), the counterpart of the structure-preserving steps fit.
-    solver : {"auto", "lstsq", "normal"}, default="auto"
+    solver : {"auto", "lstsq", "normal", "iterative"}, default="auto"
         As in :class:`HamiltonianRegressor`.
+    verbose : int, default=0
+        Print the progress of long fits when positive.
 
     Attributes
     ----------
@@ -63,13 +67,16 @@ class VectorFieldRegressor(BaseTrajectoryRegressor):
     domain_ : ndarray of shape (n_states, 2)
         The box the basis lives on.
     cond_ : float
-        Condition number of the column-equilibrated design.
+        Condition number of the column-equilibrated least-squares design
+        (estimated with ``solver="iterative"`` and beyond 1 500 unknowns with
+        ``"normal"``).
     rank_ : int
         Numerical rank of that design.
     n_terms_ : int
         Number of fitted coefficients, ``coef_.size``.
     solver_ : str
-        The solver used.
+        The solver used (``"normal"`` after :meth:`partial_fit` or a fit on
+        dask arrays).
     dt_ : float
         Median time step of the training trajectories (NaN for 2-D input).
     time_scale_ : float
@@ -104,14 +111,27 @@ class VectorFieldRegressor(BaseTrajectoryRegressor):
     def _rows_per_sample(self, n_states):
         return 1
 
-    def _fit_coef(self, data):
+    def _design_blocks(self, data, grouped=False):
+        # Every row touches every column: one group.
         space = self._space
-        self.coef_, self.cond_, self.rank_ = self._solve_blocks(
-            lambda: vector_field_blocks(
-                space, data, self.fit_on, quadrature_nodes(space, of_gradient=False)
-            ),
-            space.n_terms,
+        return vector_field_blocks(
+            space, data, self.fit_on, quadrature_nodes(space, of_gradient=False)
         )
+
+    def _normal_accumulator(self):
+        return NormalEquations(self._n_unknowns())
+
+    def _design_operator(self, data):
+        space = self._space
+        return DesignOperator(
+            space, data, self.fit_on, quadrature_nodes(space, of_gradient=False), "value"
+        )
+
+    def _n_unknowns(self):
+        return self._space.n_terms
+
+    def _set_solution(self, coef):
+        self.coef_ = coef
 
     def _vector_field(self, X):
         return self._in_blocks(

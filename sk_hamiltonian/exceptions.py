@@ -62,3 +62,14 @@ class ConservationWarning(UserWarning):
     ``HamiltonianRegressor(damping=True)`` may fit them better. Also raised
     when a fitted damping is not backed by a loss of energy in the data.
     """
+
+
+class SmoothingWarning(UserWarning):
+    """The de-noising polynomials cannot follow the trajectories.
+
+    Raised by :class:`~sk_hamiltonian.DerivativeTransformer` when the
+    residuals of its least-squares polynomials in time are far above the noise
+    level estimated from the data: each polynomial spans too much of a
+    trajectory for its degree, and the derivatives it gives are biased. A
+    smaller ``window`` or a larger ``degree`` helps.
+    """

@@ -7,9 +7,11 @@ whole trajectories, and the default score already compares rollouts with the
 held-out *observations* (see :meth:`~sk_hamiltonian.HamiltonianRegressor.score`).
 
 This module adds :func:`multistep_scorer`, a held-out score from short
-predictions started at every observation, and :func:`one_standard_error_rule`,
+predictions started at every observation, :func:`one_standard_error_rule`,
 a ``refit`` callable that prefers the smallest model whose score is within one
-standard error of the best.
+standard error of the best, and :func:`segment_trajectories`, which cuts long
+records into segments with group labels, so that a few long records can be
+cross-validated like many short trajectories.
 """
 
 import numbers
@@ -20,9 +22,15 @@ from sklearn.pipeline import Pipeline
 
 from ._base import BaseTrajectoryRegressor, is_trajectory_container
 from ._scoring import multistep_errors
+from ._trajectories import check_trajectories
 from ._vector_field import VectorFieldRegressor
 
-__all__ = ["count_terms", "multistep_scorer", "one_standard_error_rule"]
+__all__ = [
+    "count_terms",
+    "multistep_scorer",
+    "one_standard_error_rule",
+    "segment_trajectories",
+]
 
 
 def _final_regressor(estimator):
@@ -254,3 +262,116 @@ def multistep_scorer(n_steps=5, *, stride=1):
         return float(1.0 - np.mean(np.minimum(errors, 1.0)))
 
     return scorer
+
+
+def segment_trajectories(X, segment_length, *, n_groups=None, tail="merge"):
+    """Cut trajectories into contiguous segments, with group labels for blocked CV.
+
+    Cross-validation holds out whole trajectories, so one long record cannot
+    be cross-validated as it is. Cut into segments, it becomes many short
+    trajectories; the group labels keep neighbouring segments together, so
+    that :class:`~sklearn.model_selection.GroupKFold` holds out contiguous
+    stretches of the record (blocked cross-validation). Every sample lands in
+    exactly one segment, in order.
+
+    Parameters
+    ----------
+    X : array-like of shape (n_trajectories, n_times, n_columns) or list of 2-D arrays
+        Trajectories, with or without a leading time column (the columns are
+        not interpreted: segments keep them all, time stamps included).
+    segment_length : int
+        Samples per segment, at least 2. A trajectory with fewer samples
+        stays one segment.
+    n_groups : int, default=None
+        Number of groups: the segments, in the order of ``X`` (the segments
+        of ``X[0]`` in time order, then those of ``X[1]``, ...), are split into
+        ``n_groups`` runs of consecutive segments of nearly equal counts.
+        Use it as the number of folds of ``GroupKFold`` for blocked
+        cross-validation. None gives every segment its own group.
+    tail : {"merge", "keep"}, default="merge"
+        What happens to the last ``n_times % segment_length`` samples of a
+        trajectory: ``"merge"`` appends them to its last segment (which may
+        then hold up to ``2 * segment_length - 1`` samples), ``"keep"`` makes
+        them a shorter segment of their own (which may be too short for a
+        derivative estimate).
+
+    Returns
+    -------
+    segments : ndarray of shape (n_segments, segment_length, n_columns) or list of 2-D arrays
+        The segments; a 3-D array when ``X`` is one and all segments have the
+        same length, else a list.
+    groups : ndarray of shape (n_segments,)
+        Group label of each segment, for the ``groups`` argument of
+        :class:`~sklearn.model_selection.GridSearchCV` and
+        :func:`~sklearn.model_selection.cross_val_score`.
+
+    See Also
+    --------
+    sklearn.model_selection.GroupKFold : Holds out whole groups.
+
+    Notes
+    -----
+    Every segment is a trajectory of its own downstream: its derivatives are
+    estimated from its own samples only, and the default score rolls it out
+    from its own first observation.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from sklearn.model_selection import GroupKFold, cross_val_score
+    >>> from sklearn.pipeline import make_pipeline
+    >>> from sk_hamiltonian import DerivativeTransformer, HamiltonianRegressor
+    >>> from sk_hamiltonian.datasets import single_pendulum
+    >>> from sk_hamiltonian.model_selection import segment_trajectories
+    >>> system = single_pendulum()
+    >>> t = 0.01 * np.arange(1000)
+    >>> record = system.solve(system.initial_state, t)           # one long record
+    >>> segments, groups = segment_trajectories(record[None], 50, n_groups=5)
+    >>> segments.shape, groups[:6].tolist()
+    ((20, 50, 2), [0, 0, 0, 0, 1, 1])
+    >>> pipe = make_pipeline(DerivativeTransformer(dt=0.01, method="finite_difference"),
+    ...                      HamiltonianRegressor(degree=6))
+    >>> scores = cross_val_score(pipe, segments, groups=groups, cv=GroupKFold(5))
+    >>> bool(scores.min() > 0.99)
+    True
+    """
+    if (
+        isinstance(segment_length, bool)
+        or not isinstance(segment_length, numbers.Integral)
+        or segment_length < 2
+    ):
+        raise ValueError(
+            f"segment_length must be an integer of at least 2 samples; got {segment_length!r}."
+        )
+    if tail not in ("merge", "keep"):
+        raise ValueError(
+            f"tail must be 'merge' (append a short tail to the last segment) or 'keep' "
+            f"(make it a segment of its own); got {tail!r}."
+        )
+    trajectories, is_array = check_trajectories(X)
+    segments = []
+    for T in trajectories:
+        n_times = T.shape[0]
+        starts = list(range(0, n_times, segment_length))
+        if tail == "merge" and len(starts) > 1 and n_times - starts[-1] < segment_length:
+            starts.pop()
+        segments.extend(np.split(T, starts[1:]))
+    n_segments = len(segments)
+    if n_groups is None:
+        groups = np.arange(n_segments)
+    else:
+        if (
+            isinstance(n_groups, bool)
+            or not isinstance(n_groups, numbers.Integral)
+            or not 1 <= n_groups <= n_segments
+        ):
+            raise ValueError(
+                f"n_groups must be None or an integer from 1 to the number of segments "
+                f"({n_segments} of {segment_length} samples here); got {n_groups!r}. Use a "
+                f"shorter segment_length or fewer groups."
+            )
+        runs = np.array_split(np.arange(n_segments), n_groups)
+        groups = np.concatenate([np.full(run.size, g) for g, run in enumerate(runs)])
+    if is_array and len({S.shape[0] for S in segments}) == 1:
+        return np.stack(segments), groups
+    return segments, groups

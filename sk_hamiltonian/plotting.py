@@ -2,10 +2,21 @@
 
 Every function takes plain arrays and an optional matplotlib ``Axes``, draws on
 it (or on a new figure) and returns the ``Axes``. matplotlib is imported only
-when a function is called, so the package does not depend on it.
+when a function is called, so the package does not depend on it. Functions
+that draw one panel per state variable take and return an array of ``Axes``.
+NaN values (a failed or blown-up solution, see
+:func:`sk_hamiltonian.metrics.mask_blowup`) leave gaps: the curves stop there.
 """
 
 import numpy as np
+
+__all__ = [
+    "plot_energy",
+    "plot_errors",
+    "plot_phase",
+    "plot_states",
+    "plot_trajectories",
+]
 
 
 def _axes(ax):
@@ -62,6 +73,7 @@ def plot_trajectories(t, trajectories, *, state_names=None, ax=None):
     Returns
     -------
     ax : matplotlib Axes
+        The Axes drawn on.
 
     Examples
     --------
@@ -87,14 +99,17 @@ def plot_trajectories(t, trajectories, *, state_names=None, ax=None):
 
 
 def plot_phase(trajectories, *, pair=0, state_names=None, ax=None, scatter=None):
-    """Phase portrait ``(q_i, p_i)`` of one or several trajectories.
+    """Phase portrait of one or several trajectories: ``(q_i, p_i)``, or any two states.
 
     Parameters
     ----------
     trajectories : dict of str to array-like of shape (n_times, n_states)
         Labelled trajectories.
-    pair : int, default=0
-        Which degree of freedom ``i`` to draw.
+    pair : int or tuple of (int, int), default=0
+        An int ``i``: the degree of freedom ``i``, drawn as ``(q_i, p_i)``. A
+        tuple ``(i, j)``: state variable ``j`` (vertical) against state
+        variable ``i`` (horizontal), any two of ``p_1..p_d, q_1..q_d`` (in 4-D,
+        ``(2, 1)`` draws ``p2`` against ``q1``).
     state_names : list of str, default=None
         Names of the state variables, for the axis labels.
     ax : matplotlib Axes, default=None
@@ -105,24 +120,44 @@ def plot_phase(trajectories, *, pair=0, state_names=None, ax=None, scatter=None)
     Returns
     -------
     ax : matplotlib Axes
+        The Axes drawn on.
     """
     curves = _check_curves(trajectories, what="trajectories")
-    ax = _axes(ax)
     n_states = next(iter(curves.values())).shape[1]
-    d = n_states // 2
-    if not 0 <= pair < d:
-        raise ValueError(f"pair must be in [0, {d - 1}]; got {pair!r}.")
+    i, j = _phase_variables(pair, n_states)
     names = _state_names(n_states, state_names)
+    ax = _axes(ax)
     if scatter is not None:
         S = np.asarray(scatter, dtype=float).reshape(-1, n_states)
-        ax.plot(S[:, d + pair], S[:, pair], ".", color="0.8", ms=1, label="observations")
+        ax.plot(S[:, i], S[:, j], ".", color="0.8", ms=1, label="observations")
     for k, (label, Y) in enumerate(curves.items()):
         style = "-" if k == 0 else ("--", ":", "-.")[(k - 1) % 3]
-        ax.plot(Y[:, d + pair], Y[:, pair], style, lw=1.2, label=label)
-    ax.set_xlabel(names[d + pair])
-    ax.set_ylabel(names[pair])
+        ax.plot(Y[:, i], Y[:, j], style, lw=1.2, label=label)
+    ax.set_xlabel(names[i])
+    ax.set_ylabel(names[j])
     ax.legend(fontsize="small")
     return ax
+
+
+def _phase_variables(pair, n_states):
+    """Horizontal and vertical state indices of a phase plot."""
+    d = n_states // 2
+    if isinstance(pair, (tuple, list)):
+        if len(pair) == 2 and all(
+            isinstance(k, (int, np.integer)) and not isinstance(k, bool) and 0 <= k < n_states
+            for k in pair
+        ):
+            return int(pair[0]), int(pair[1])
+        raise ValueError(
+            f"pair as a tuple must be two state indices (i, j) in [0, {n_states - 1}]; "
+            f"got {pair!r}."
+        )
+    if isinstance(pair, (int, np.integer)) and not isinstance(pair, bool) and 0 <= pair < d:
+        return d + int(pair), int(pair)
+    raise ValueError(
+        f"pair must be a degree of freedom in [0, {d - 1}] or a tuple (i, j) of state "
+        f"indices; got {pair!r}."
+    )
 
 
 def plot_energy(t, energies, *, deviation=True, ax=None):
@@ -143,6 +178,7 @@ def plot_energy(t, energies, *, deviation=True, ax=None):
     Returns
     -------
     ax : matplotlib Axes
+        The Axes drawn on.
     """
     t = np.asarray(t, dtype=float)
     curves = _check_curves(energies, t.shape[0], "energies")
@@ -156,3 +192,119 @@ def plot_energy(t, energies, *, deviation=True, ax=None):
     ax.set_ylabel("|H(t) - H(0)|" if deviation else "H(t)")
     ax.legend(fontsize="small")
     return ax
+
+
+def plot_errors(t, errors, *, ax=None):
+    """Relative errors over time, on a logarithmic axis.
+
+    Parameters
+    ----------
+    t : array-like of shape (n_times,)
+        Times.
+    errors : dict of str to array-like of shape (n_times,)
+        Labelled errors, e.g. from :func:`sk_hamiltonian.metrics.relative_error`.
+        A curve stops where its error is NaN (its solution blew up).
+    ax : matplotlib Axes, default=None
+        Where to draw; None creates a figure.
+
+    Returns
+    -------
+    ax : matplotlib Axes
+        The Axes drawn on.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from sk_hamiltonian.plotting import plot_errors
+    >>> t = np.linspace(0, 10, 50)
+    >>> ax = plot_errors(t, {"SP": 1e-3 * (1 + t), "non-SP": 1e-3 * (1 + t) ** 2})
+    >>> ax.get_yscale()
+    'log'
+    """
+    t = np.asarray(t, dtype=float)
+    curves = _check_curves(errors, t.shape[0], "errors")
+    for label, e in curves.items():
+        if e.ndim != 1:
+            raise ValueError(
+                f"errors[{label!r}] must be 1-D, one error per time; got shape {e.shape}."
+            )
+    ax = _axes(ax)
+    for label, e in curves.items():
+        ax.semilogy(t, e, lw=1.2, label=label)
+    ax.set_xlabel("t")
+    ax.set_ylabel("relative error")
+    ax.legend(fontsize="small")
+    return ax
+
+
+def plot_states(t, trajectories, *, state_names=None, n_markers=120, axes=None):
+    """One panel per state variable: a reference solution and others over time.
+
+    The first trajectory, the reference (e.g. the true solution), is drawn as
+    a thin black line; the others as coloured lines carrying about
+    ``n_markers`` open circles, so that the reference stays visible under
+    them (the style of the paper's figures).
+
+    Parameters
+    ----------
+    t : array-like of shape (n_times,)
+        Times.
+    trajectories : dict of str to array-like of shape (n_times, n_states)
+        Labelled trajectories, the reference first, e.g.
+        ``{"exact": U, "SP": V}``.
+    state_names : list of str, default=None
+        Names of the state variables; None uses ``p, q`` or ``p1.., q1..``.
+    n_markers : int, default=120
+        Approximate number of circles on each non-reference curve; 0 draws
+        none.
+    axes : array-like of matplotlib Axes, default=None
+        One Axes per state variable, in the order ``p_1..p_d, q_1..q_d``;
+        None creates a figure with the ``p`` panels in the top row and the
+        ``q`` panels below them.
+
+    Returns
+    -------
+    axes : ndarray of matplotlib Axes, of shape (n_states,)
+        The panels, in the order of the state variables.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from sk_hamiltonian.plotting import plot_states
+    >>> t = np.linspace(0, 6, 60)
+    >>> exact = np.column_stack([-np.sin(t), np.cos(t)])
+    >>> axes = plot_states(t, {"exact": exact, "learned": 1.01 * exact})
+    >>> [ax.get_ylabel() for ax in axes]
+    ['p', 'q']
+    """
+    t = np.asarray(t, dtype=float)
+    curves = _check_curves(trajectories, t.shape[0], "trajectories")
+    n_states = next(iter(curves.values())).shape[1]
+    names = _state_names(n_states, state_names)
+    if (isinstance(n_markers, bool) or not isinstance(n_markers, (int, np.integer))
+            or n_markers < 0):
+        raise ValueError(f"n_markers must be a non-negative integer; got {n_markers!r}.")
+    if axes is None:
+        import matplotlib.pyplot as plt
+
+        d = max(1, n_states // 2)
+        _, grid = plt.subplots(2, d, figsize=(max(9.0, 4.8 * d), 5.5), squeeze=False)
+        # Row 0 holds p_1..p_d and row 1 q_1..q_d, matching the state order.
+        axes = grid.ravel()
+    axes = np.asarray(axes, dtype=object).ravel()
+    if axes.shape[0] != n_states:
+        raise ValueError(
+            f"axes must hold one Axes per state variable ({n_states}); got {axes.shape[0]}."
+        )
+    every = max(1, t.shape[0] // n_markers) if n_markers else None
+    for i, ax in enumerate(axes):
+        for k, (label, Y) in enumerate(curves.items()):
+            if k == 0:
+                ax.plot(t, Y[:, i], "k-", lw=1, label=label)
+            else:
+                ax.plot(t, Y[:, i], "-o" if every else "-", lw=0.8, ms=3, mfc="none",
+                        markevery=every, color=f"C{k - 1}", label=label)
+        ax.set_xlabel("t")
+        ax.set_ylabel(names[i])
+    axes[0].legend(fontsize="small")
+    return axes

@@ -123,3 +123,28 @@ def test_stability_quick(runs):
             assert _finite(r, "fail_time"), r
     truth = [r for r in rows if r["experiment"] == "cherry_blowup" and r["method"] == "truth"]
     assert len(truth) == 1 and 27 < float(truth[0]["blowup_time"]) < 29
+
+
+@pytest.mark.slow
+def test_scale_quick(tmp_path):
+    out = tmp_path / "scale"
+    env = dict(os.environ, MPLBACKEND="Agg")
+    proc = subprocess.run(
+        [sys.executable, str(BENCHMARKS / "bench_scale.py"), "--quick", "--output", str(out)],
+        capture_output=True, text=True, env=env, timeout=240,
+    )
+    assert proc.returncode == 0, (proc.stdout + proc.stderr)[-3000:]
+    assert (out / "scale.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    assert (out / "machine.txt").read_text().count("cores") == 1
+    columns, rows = _read(out / "scale.csv")
+    assert columns == ["group", "measure", "value", "unit", "target", "met", "note"]
+    assert {r["group"] for r in rows} == {"evaluation", "simulation", "fit", "solver choice",
+                                          "scaling"}
+    for r in rows:
+        assert math.isfinite(float(r["value"])) and float(r["value"]) > 0, r
+        # A target is either reported met or not, never silently dropped.
+        assert (r["target"] == "") == (r["met"] == ""), r
+        assert r["met"] in ("", "yes", "no"), r
+    assert sum(r["target"] != "" for r in rows) >= 4
+    _, fits = _read(out / "scale_fit.csv")
+    assert {r["sweep"] for r in fits} == {"samples", "terms"}

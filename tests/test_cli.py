@@ -2,6 +2,7 @@
 
 import contextlib
 import io
+import os
 import re
 import subprocess
 import sys
@@ -10,8 +11,11 @@ import joblib
 import numpy as np
 import pytest
 
+import sk_hamiltonian.__main__ as sk_main
 from sk_hamiltonian.__main__ import main
-from sk_hamiltonian.datasets import make_trajectories
+from sk_hamiltonian._datafiles import load_trajectories
+from sk_hamiltonian._report import UsageError
+from sk_hamiltonian.datasets import make_trajectories, single_pendulum
 
 pytest.importorskip("matplotlib")
 
@@ -71,6 +75,12 @@ def test_default_example_report(demo):
     assert f"figure: {figure}" in out
     assert figure.stat().st_size > 10_000
     assert "u0* = (-3.876, -1.193)" in out
+    # The conservation check, with its reading: the pendulum conserves energy.
+    trend = re.search(r"energy trend of H~ along the data: \S+ of its spread per unit time "
+                      r"\(z = (\S+)\): (.*)$", out, re.M)
+    assert trend, out
+    assert abs(float(trend.group(1))) <= 5 and "look conservative" in trend.group(2)
+    assert trend.group(1) == f"{model[-1].energy_trend_z_:.1f}"
 
 
 def test_model_from_the_report_predicts(demo):
@@ -160,7 +170,9 @@ def test_error_missing_dt(tmp_path, capsys, pendulum_data):
     "array,message",
     [
         (np.zeros((30, 2)), "expected (n_trajectories, n_times, 2d)"),
-        (np.zeros((5, 30, 3)), "even"),
+        (np.zeros((5, 30, 1)), "even"),
+        # An odd number of columns is a time column and the states.
+        (np.zeros((5, 30, 3)), "time stamps of trajectory 0 must be strictly increasing"),
     ],
 )
 def test_error_wrong_layout(tmp_path, capsys, array, message):
@@ -184,8 +196,9 @@ def test_error_bad_options(tmp_path, capsys, pendulum_data):
     assert "neither an integer nor 'fd'" in error_of(
         [str(path), "--dt", "0.02", "--denoise-degrees", "x"], capsys
     )
-    assert "--dt must be positive" in error_of([str(path), "--dt", "-1"], capsys)
-    assert "cannot fill 50 folds" in error_of([str(path), "--dt", "0.02", "--cv", "50"], capsys)
+    # 40 trajectories x 31 samples: not even 3-sample segments fill 1000 folds.
+    line = error_of([str(path), "--dt", "0.02", "--cv", "1000"], capsys)
+    assert "cannot fill 1000 folds, even cut into segments" in line
 
 
 def test_help_documents_the_options(capsys):
@@ -230,3 +243,218 @@ def test_short_trajectories_drop_impossible_candidates(tmp_path, capsys):
     assert status == 0
     assert "note: dropped de-noising degrees [3, 5]: trajectories have 4 samples" in out
     assert len(re.findall(r"^\s+\[\d/2\]", err, re.M)) == 2
+
+
+# --------------------------------------------------------------------------
+# Time stamps, long records, and the sharp edges users found
+
+
+def write_csv(path, trajectories, names=("p", "q"), time_name=None):
+    """One row per sample: the trajectory id, [the time], the states."""
+    header = ["trajectory"] + ([time_name] if time_name else []) + list(names)
+    rows = [",".join(header)]
+    for k, T in enumerate(trajectories):
+        rows += [",".join([str(k)] + [repr(float(v)) for v in row]) for row in T]
+    path.write_text("\n".join(rows) + "\n")
+    return path
+
+
+def stamped_pendulum(n_trajectories, n_times, dt, seed=0, noise=0.01):
+    """Pendulum trajectories with steps uniform in [0.5, 1.5] dt, time first."""
+    system = single_pendulum()
+    rng = np.random.default_rng(seed)
+    x0 = rng.uniform(system.domain[:, 0] / 2, system.domain[:, 1] / 2, size=(n_trajectories, 2))
+    out = []
+    for x in x0:
+        t = np.concatenate([[0.0], np.cumsum(rng.uniform(0.5, 1.5, n_times - 1) * dt)])
+        X = system.solve(x, t, max_step=dt / 10)
+        out.append(np.column_stack([t, X * (1 + rng.uniform(-noise, noise, X.shape))]))
+    return out
+
+
+@pytest.mark.parametrize("time_name", ["t", "time"])
+def test_csv_time_column_replaces_dt(tmp_path, capsys, time_name):
+    path = write_csv(tmp_path / "runs.csv", stamped_pendulum(30, 25, 0.02), time_name=time_name)
+    status, out, _ = run(
+        [str(path), "--output", str(tmp_path), "--degrees", "6", "--denoise-degrees", "fd",
+         "--cv", "3"], capsys,
+    )
+    assert status == 0
+    assert re.search(
+        r"30 trajectories x 25 samples, 2 states, time stamps \(median step 0\.0(19|2)", out
+    ), out
+    model = joblib.load(tmp_path / "model.joblib")
+    assert model[0].dt is None and model[0].n_features_in_ == 2
+    assert re.search(r"H~ = \d\.\d+ q\^2 \+ 0\.\d+ p\^2 ", out), out
+
+
+def test_npz_times_array_or_time_column(tmp_path):
+    stamped = np.stack(stamped_pendulum(4, 10, 0.02))
+    np.savez(tmp_path / "a.npz", trajectories=stamped[..., 1:], times=stamped[..., 0])
+    np.savez(tmp_path / "b.npz", trajectories=stamped)
+    np.savez(tmp_path / "c.npz", stamped)
+    for name in ("a.npz", "b.npz", "c.npz"):
+        data = load_trajectories(str(tmp_path / name))
+        assert data.stamped and data.names == ["p", "q"]
+        np.testing.assert_array_equal(data.trajectories, stamped)
+    np.savez(tmp_path / "bad.npz", trajectories=stamped[..., 1:], times=stamped[:2, :, 0])
+    with pytest.raises(UsageError, match=r"'times' must be numeric of shape .*\(4, 10\)"):
+        load_trajectories(str(tmp_path / "bad.npz"))
+
+
+def test_time_stamps_and_dt_together_are_refused(tmp_path, capsys):
+    path = write_csv(tmp_path / "runs.csv", stamped_pendulum(6, 10, 0.02), time_name="t")
+    line = error_of([str(path), "--dt", "0.02"], capsys)
+    assert "carries time stamps" in line and "drop --dt" in line
+
+
+def test_time_stamps_must_increase_and_the_message_names_the_trajectory(tmp_path, capsys):
+    runs = stamped_pendulum(6, 10, 0.02)
+    runs[4][6, 0] = runs[4][5, 0]
+    path = write_csv(tmp_path / "runs.csv", runs, time_name="t")
+    line = error_of([str(path)], capsys)
+    assert "time stamps of trajectory 4 must be strictly increasing" in line
+    assert "sample 6" in line
+
+
+def test_one_long_record_is_cut_into_segments_for_blocked_cv(tmp_path, capsys):
+    # One noisy record with irregular stamps: 800 intervals of about 0.01.
+    (record,) = stamped_pendulum(1, 801, 0.01, noise=0.02)
+    path = write_csv(tmp_path / "record.csv", [record], time_name="t")
+    status, out, err = run(
+        [str(path), "--output", str(tmp_path), "--degrees", "6", "--denoise-degrees", "5"],
+        capsys,
+    )
+    assert status == 0
+    # 801 = 18 * 41 + 63: 19 segments, the last one longer.
+    assert (
+        "note: 1 trajectory cannot fill 5 folds: cut into 19 segments of 41 samples "
+        "(the last of a record up to 63); blocked cross-validation" in out
+    )
+    assert "5 folds of contiguous segments" in out
+    score = number(r"chosen: .* \(score (\S+) \+-", out)
+    assert score > 0.9  # measured 0.98
+    assert "up to T = 4" in out  # 10 x the median segment duration, about 0.4
+
+
+def test_segment_length_option(tmp_path, capsys):
+    (record,) = stamped_pendulum(1, 301, 0.01)
+    path = write_csv(tmp_path / "record.csv", [record], time_name="t")
+    status, out, _ = run(
+        [str(path), "--output", str(tmp_path), "--degrees", "4", "--denoise-degrees", "fd",
+         "--cv", "3", "--segment-length", "50"], capsys,
+    )
+    assert status == 0
+    assert "cut into 6 segments of 50 samples (the last of a record up to 51)" in out
+    assert "--segment-length must be at least 3" in error_of(
+        [str(path), "--segment-length", "2", "--cv", "3"], capsys
+    )
+
+
+def test_unwritable_output_fails_before_the_search(tmp_path, capsys, monkeypatch, pendulum_data):
+    path = tmp_path / "runs.npz"
+    np.savez(path, trajectories=pendulum_data)
+    out_dir = tmp_path / "existing"
+    out_dir.mkdir()
+
+    def refuse(*args, **kwargs):
+        raise PermissionError(13, "Permission denied")
+
+    # What the operating system answers for a directory without write
+    # permission (root ignores permission bits, so they cannot be used here).
+    monkeypatch.setattr(sk_main.tempfile, "mkstemp", refuse)
+    with pytest.raises(SystemExit) as exit_info:
+        main([str(path), "--dt", "0.02", "--output", str(out_dir)])
+    out, err = capsys.readouterr()
+    assert exit_info.value.code == 2
+    assert err.strip() == (
+        f"sk-hamiltonian: error: cannot write to the output directory {out_dir} "
+        f"(Permission denied): choose another one with --output"
+    )
+    assert "search:" not in out  # refused up front, not after the search
+
+
+@pytest.mark.skipif(os.geteuid() == 0, reason="root may write to any directory")
+def test_read_only_output_directory_fails_before_the_search(tmp_path, capsys, pendulum_data):
+    path = tmp_path / "runs.npz"
+    np.savez(path, trajectories=pendulum_data)
+    out_dir = tmp_path / "read_only"
+    out_dir.mkdir()
+    out_dir.chmod(0o555)
+    try:
+        line = error_of([str(path), "--dt", "0.02", "--output", str(out_dir)], capsys)
+    finally:
+        out_dir.chmod(0o755)
+    assert "cannot write to the output directory" in line
+
+
+@pytest.mark.parametrize("value", ["inf", "nan", "-1", "0"])
+def test_dt_must_be_positive_and_finite(tmp_path, capsys, pendulum_data, value):
+    path = tmp_path / "runs.npz"
+    np.savez(path, trajectories=pendulum_data)
+    line = error_of([str(path), "--dt", value], capsys)
+    assert "--dt must be a positive finite number" in line
+    assert "--dt must be a positive finite number" in error_of(["--dt", value], capsys)
+
+
+@pytest.mark.parametrize("value", ["inf", "nan", "-2"])
+def test_horizon_must_be_positive_and_finite(tmp_path, capsys, pendulum_data, value):
+    path = tmp_path / "runs.npz"
+    np.savez(path, trajectories=pendulum_data)
+    line = error_of([str(path), "--dt", "0.02", "--horizon", value], capsys)
+    assert "--horizon must be a positive finite number" in line
+
+
+@pytest.mark.parametrize("content", ["trajectory,p,q\n", "trajectory,p,q\n\n\n"])
+def test_empty_csv_says_it_has_no_data_rows(tmp_path, capsys, content):
+    path = tmp_path / "empty.csv"
+    path.write_text(content)
+    assert "the file has a header but no data rows" in error_of(
+        [str(path), "--dt", "0.1"], capsys
+    )
+
+
+def test_a_too_short_trajectory_is_dropped_with_a_note_naming_it(tmp_path, capsys):
+    X = make_trajectories("single_pendulum", 150, 10, 0.02, noise=0.01, random_state=0)
+    runs = [T if k != 17 else T[:2] for k, T in enumerate(X)]
+    path = write_csv(tmp_path / "runs.csv", runs)
+    status, out, _ = run(
+        [str(path), "--dt", "0.02", "--output", str(tmp_path), "--degrees", "4",
+         "--denoise-degrees", "fd", "5"], capsys,
+    )
+    assert status == 0
+    assert (
+        "note: dropped 1 of 150 trajectories with fewer than 3 samples, from which no time "
+        "derivative can be estimated: 17 (2 samples)" in out
+    )
+    assert "149 trajectories x 11 samples" in out
+    assert "dropped de-noising degrees" not in out  # Q = 5 fits 11 samples
+
+
+def test_a_short_trajectory_names_itself_when_it_rules_out_a_degree(tmp_path, capsys):
+    X = make_trajectories("single_pendulum", 30, 10, 0.02, noise=0.01, random_state=0)
+    runs = [T if k != 4 else T[:5] for k, T in enumerate(X)]
+    path = write_csv(tmp_path / "runs.csv", runs)
+    status, out, _ = run(
+        [str(path), "--dt", "0.02", "--output", str(tmp_path), "--degrees", "4",
+         "--denoise-degrees", "fd", "5", "--cv", "3"], capsys,
+    )
+    assert status == 0
+    assert (
+        "note: dropped de-noising degrees [5]: the shortest trajectory (4) has 5 samples, "
+        "and Q must be at most samples - 2" in out
+    )
+
+
+def test_default_horizon_is_ten_median_durations_over_all_trajectories(
+    tmp_path, capsys, pendulum_data
+):
+    # The first trajectory is short; the median duration is 30 * 0.02 = 0.6.
+    runs = [T if k else T[:5] for k, T in enumerate(pendulum_data)]
+    path = write_csv(tmp_path / "runs.csv", runs)
+    status, out, _ = run(
+        [str(path), "--dt", "0.02", "--output", str(tmp_path), "--degrees", "6",
+         "--denoise-degrees", "fd", "--cv", "3"], capsys,
+    )
+    assert status == 0
+    assert "up to T = 6 " in out

@@ -115,3 +115,14 @@ def test_underdetermined_baseline_gives_minimum_norm_fit_with_a_warning():
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", DomainWarning)
         assert np.allclose(model.predict(X), y, atol=1e-8)
+
+
+def test_pipeline_predict_on_states_points_to_the_regressor():
+    rng = np.random.default_rng(3)
+    X = rng.normal(size=(6, 20, 2)).cumsum(axis=1) * 0.1
+    pipe = make_pipeline(DerivativeTransformer(dt=0.1, degree=3), HamiltonianRegressor(degree=2))
+    pipe.fit(X)
+    states = X[0]
+    with pytest.raises(ValueError, match=r"pipe\[-1\]\.predict\(states\)"):
+        pipe.predict(states)
+    assert pipe[-1].predict(states).shape == states.shape

@@ -164,7 +164,7 @@ def test_derivative_transformer_api_on_trajectories():
     order = np.random.default_rng(1).permutation(6)
     assert np.array_equal(transformer.transform(X[order]), out[order])
     assert transformer.get_params() == {
-        "dt": 0.1, "method": "polynomial", "degree": 3, "smooth_states": True
+        "dt": 0.1, "method": "polynomial", "degree": 3, "window": "auto", "smooth_states": True
     }
     assert np.array_equal(X, trajectories())
     tags = transformer.__sklearn_tags__()

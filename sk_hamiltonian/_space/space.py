@@ -10,8 +10,9 @@ over a given set of multi-indices.
 import numpy as np
 
 from . import tensor
-from .fourier import fourier_column, fourier_tables, period_to_angle, wrap_to_period
-from .legendre import interval_to_window, legendre_tables
+from .contraction import ContractionPlan
+from .fourier import fourier_column, wrap_to_period
+from .tables import FactorTables
 
 
 def outside_domain(X, domain, periodic, slack=0.0):
@@ -34,8 +35,12 @@ def outside_domain(X, domain, periodic, slack=0.0):
     """
     low, high = domain[:, 0], domain[:, 1]
     margin = slack * (high - low)
-    out = (X < low - margin) | (X > high + margin)
-    return np.any(out[:, ~np.asarray(periodic, dtype=bool)], axis=1)
+    # Periodic variables get infinite bounds: no column selection (which
+    # costs more than the comparisons for the one state of a prediction).
+    periodic = np.asarray(periodic, dtype=bool)
+    below = np.where(periodic, -np.inf, low - margin)
+    above = np.where(periodic, np.inf, high + margin)
+    return ((X < below) | (X > above)).any(axis=1)
 
 
 class ModelSpace:
@@ -62,11 +67,22 @@ class ModelSpace:
         )
         #: Table column of every variable in every basis function.
         self.columns = np.where(self.periodic, fourier_column(self.powers), np.abs(self.powers))
-        self.layout = tensor.SlotLayout(self.columns)
         magnitude = np.abs(self.powers)
         self.legendre_degree = int(magnitude[:, ~self.periodic].max(initial=0))
         self.fourier_degree = int(magnitude[:, self.periodic].max(initial=0))
         self.width = max(self.legendre_degree + 1, 2 * self.fourier_degree + 1)
+        self.layout = tensor.SlotLayout(self.columns, self.width)
+        self.factor_tables = FactorTables(
+            self.domain, self.periodic, self.legendre_degree, self.fourier_degree, self.width
+        )
+        # Built on first use: (plan,) and (coef, fingerprint, coefficient matrix).
+        self._contraction = None
+        self._binding = None
+        self._probe = np.random.default_rng(0).standard_normal(self.n_terms)
+
+    def __getstate__(self):
+        # Caches are rebuilt on first use; keep pickles (joblib, dask) small.
+        return {**self.__dict__, "_contraction": None, "_binding": None}
 
     @property
     def n_states(self):
@@ -119,42 +135,107 @@ class ModelSpace:
             ``tables[r][s, i, c]``: ``r``-th derivative of column ``c`` of
             variable ``i``'s family at sample ``s``; row ``n_states`` is the
             dummy variable of the slot layout (``1``, derivatives ``0``).
+            Views of the kernels' layout (see :mod:`.tables`).
         """
-        n_samples = X.shape[0]
-        shape = (n_samples, self.n_states + 1, self.width)
-        tables = [np.zeros(shape) for _ in range(n_derivatives + 1)]
-        tables[0][:, self.n_states, 0] = 1.0
-        low, high = self.domain[:, 0], self.domain[:, 1]
-        for flags, family, to_window, degree in (
-            (~self.periodic, legendre_tables, interval_to_window, self.legendre_degree),
-            (self.periodic, fourier_tables, period_to_angle, self.fourier_degree),
-        ):
-            if not flags.any():
-                continue
-            window, scale = to_window(X[:, flags], low[flags], high[flags])
-            parts = family(window, degree, n_derivatives)
-            for r, part in enumerate(parts):
-                tables[r][:, : self.n_states][:, flags, : part.shape[-1]] = part * (
-                    scale[:, None] ** r
-                )
-        return tables
+        X = np.asarray(X, dtype=float)
+        return list(np.moveaxis(self.factor_tables(X, n_derivatives), -1, 1))
+
+    # ------------------------------------------------------------ evaluation
+    # The kernels work terms-major (samples last); these methods return the
+    # samples-first arrays the estimators use, as transposed views.
+    def _plan(self):
+        """The contraction plan, or None where scattering slots is cheaper (built once)."""
+        if self._contraction is None:
+            plan = None
+            if self.layout.dense or self.n_terms == 0:
+                plan = ContractionPlan(self.columns, self.width)
+            else:
+                candidate = ContractionPlan(self.columns, self.width)
+                # Slot kernels cost about 4 passes over (n_terms, n_slots) per state.
+                if candidate.cost <= 4 * self.n_terms * self.layout.n_slots:
+                    plan = candidate
+            self._contraction = (plan,)
+        return self._contraction[0]
+
+    def _bound(self, plan, coef):
+        """The coefficient matrix of ``coef``, cached while ``coef`` is unchanged.
+
+        The cache is keyed by the array and a fingerprint of its values (a
+        fixed random projection), so that changing ``coef`` in place is seen.
+        """
+        fingerprint = (self._probe @ coef).tolist()
+        cached = self._binding
+        if cached is not None and cached[0] is coef and cached[1] == fingerprint:
+            return cached[2]
+        C = plan.bind(coef)
+        self._binding = (coef, fingerprint, C)
+        return C
+
+    def _contract(self, X, coef, order):
+        """Contraction results (n_patterns, K, n_samples) and patterns, or None."""
+        plan = self._plan()
+        if plan is None:
+            return None
+        tables = self.factor_tables(X, order)
+        return plan.contract(tables, self._bound(plan, coef), order)
 
     def values(self, X):
         """Values of the basis functions, ndarray of shape (n_samples, n_terms)."""
-        return tensor.values(self.tables(X, 0), self.layout)
+        return self.values_t(X).T
+
+    def values_t(self, X):
+        """Values of the basis functions, terms-major: ndarray (n_terms, n_samples)."""
+        return tensor.values(self.factor_tables(X, 0), self.layout)
 
     def gradients(self, X):
         """Gradients of the basis functions, ndarray of shape (n_samples, n_states, n_terms)."""
-        return tensor.gradients(self.tables(X, 1), self.layout)
+        return np.transpose(self.gradients_t(X), (2, 1, 0))
+
+    def gradients_t(self, X, out=None):
+        """Gradients, terms-major: ndarray (n_terms, n_states, n_samples), into ``out`` if given."""
+        return tensor.gradients(self.factor_tables(X, 1), self.layout, out=out)
+
+    def gradient_rows_t(self, X, rows, outs):
+        """``d phi_j / d x_i`` for the functions ``rows[i]``, into ``outs[i]`` (dense layouts).
+
+        See :func:`.tensor.gradient_rows`; a design assembled by variable
+        skips the functions that do not depend on it.
+        """
+        tensor.gradient_rows(self.factor_tables(X, 1), self.layout, rows, outs)
 
     def value_dot(self, X, coef):
-        """Values of ``sum_j coef[j] phi_j`` (``coef`` may have trailing target axes)."""
-        return self.values(X) @ coef
+        """Values of ``sum_j coef[j] phi_j`` (``coef`` may have a trailing target axis)."""
+        result = self._contract(X, coef, 0)
+        if result is None:
+            return self.values(X) @ coef
+        values, _ = result
+        values = values[0].T  # (n_samples, K)
+        return values[:, 0] if np.ndim(coef) == 1 else values
 
     def gradient_dot(self, X, coef):
-        """Gradient of ``sum_j coef[j] phi_j``, ndarray of shape (n_samples, n_states)."""
-        return tensor.gradient_dot(self.tables(X, 1), self.layout, coef)
+        """Gradient of ``sum_j coef[j] phi_j``, ndarray of shape (n_samples, n_states) + coef.shape[1:]."""
+        result = self._contract(X, coef, 1)
+        if result is None:
+            if np.ndim(coef) == 1:
+                return tensor.gradient_dot(self.factor_tables(X, 1), self.layout, coef).T
+            return np.einsum("jis,jk->sik", self.gradients_t(X), coef)
+        derivatives, _ = result
+        rows = self._plan().rows(1, [(i,) for i in range(self.n_states)])
+        grad = derivatives[rows].transpose(2, 0, 1)  # (n_samples, n_states, K)
+        return grad[:, :, 0] if np.ndim(coef) == 1 else grad
 
     def hessian_dot(self, X, coef):
         """Hessian of ``sum_j coef[j] phi_j``, ndarray of shape (n_samples, n_states, n_states)."""
-        return tensor.hessian_dot(self.tables(X, 2), self.layout, coef)
+        result = self._contract(X, coef, 2)
+        if result is None:
+            H = tensor.hessian_dot(self.factor_tables(X, 2), self.layout, coef)
+            return np.moveaxis(H, -1, 0)
+        derivatives, patterns = result
+        m = self.n_states
+        second = [(k, p) for k, p in enumerate(patterns) if len(p) == 2]
+        rows = np.array([k for k, _ in second])
+        i, j = np.array([p for _, p in second]).T
+        H = np.empty((derivatives.shape[-1], m, m))
+        H[:, i, j] = derivatives[rows, 0].T
+        H[:, j, i] = derivatives[rows, 0].T
+        return H

@@ -179,6 +179,8 @@ SKLEARN = [
     ("sklearn.model_selection.GridSearchCV", "py:class", sklearn_api("sklearn.model_selection.GridSearchCV"), "-"),
     ("sklearn.model_selection.RandomizedSearchCV", "py:class", sklearn_api("sklearn.model_selection.RandomizedSearchCV"), "-"),
     ("sklearn.model_selection.KFold", "py:class", sklearn_api("sklearn.model_selection.KFold"), "-"),
+    ("sklearn.model_selection.GroupKFold", "py:class", sklearn_api("sklearn.model_selection.GroupKFold"), "-"),
+    ("sklearn.set_config", "py:function", sklearn_api("sklearn.set_config"), "-"),
     ("sklearn.model_selection.cross_val_score", "py:function", sklearn_api("sklearn.model_selection.cross_val_score"), "-"),
     ("sklearn.model_selection.cross_validate", "py:function", sklearn_api("sklearn.model_selection.cross_validate"), "-"),
     ("sklearn.metrics.r2_score", "py:function", sklearn_api("sklearn.metrics.r2_score"), "-"),
@@ -188,6 +190,10 @@ SKLEARN = [
     ("estimator", "std:term", "glossary.html#term-estimator", "-"),
     ("estimators", "std:term", "glossary.html#term-estimators", "-"),
     ("random_state", "std:term", "glossary.html#term-random_state", "-"),
+    ("meta-estimator", "std:term", "glossary.html#term-meta-estimator", "-"),
+    # The set_*_request methods that metadata routing adds to estimators with
+    # sample_weight link to the routing guide.
+    ("metadata_routing", "std:label", "metadata_routing.html#metadata-routing", "Metadata Routing"),
 ]
 
 MATPLOTLIB = [

@@ -1,0 +1,153 @@
+"""1-D factor tables of a model space, laid out for the tensor kernels.
+
+A *factor table* holds, for every state variable, its 1-D family (Legendre on
+an interval, Fourier on a period) and the family's derivatives at every sample,
+already multiplied by the chain-rule factor of the variable's coordinate map.
+The kernels of :mod:`.tensor` and :mod:`.contraction` read them as arrays of
+shape ``(n_states + 1, width, n_samples)``: samples on the last, contiguous
+axis, so that gathering the columns of many basis functions copies whole rows,
+and row ``n_states`` is the dummy variable of the slot layout (``1``,
+derivatives ``0``).
+
+Two ways to fill a Legendre table, chosen by size: for a handful of samples
+(one state of a simulation) a single call of :func:`scipy.special.eval_legendre`
+costs less than the Python loop of the three-term recurrence; for many samples
+the recurrence does ``O(degree)`` work per point against that function's
+``O(degree**2)``.
+"""
+
+import numpy as np
+from scipy.special import eval_legendre
+
+from .fourier import period_to_angle
+from .legendre import interval_to_window, legendre_derivative_matrix
+
+# Up to this many (sample, variable) points, one eval_legendre call; beyond,
+# the recurrence (measured crossover on one core: about 40 points at degree 15).
+DIRECT_POINTS = 32
+
+
+_DERIVATIVE_MATRICES = {}
+
+
+def _derivative_matrix_t(degree):
+    """``D.T`` of :func:`legendre_derivative_matrix`, contiguous (cached)."""
+    if degree not in _DERIVATIVE_MATRICES:
+        _DERIVATIVE_MATRICES[degree] = np.ascontiguousarray(legendre_derivative_matrix(degree).T)
+    return _DERIVATIVE_MATRICES[degree]
+
+
+def _legendre(xi, degree, out):
+    """Fill ``out[r]`` (n_vars, degree + 1, S) with the r-th derivatives of P_0..P_degree at xi."""
+    value = out[0]
+    if xi.size <= DIRECT_POINTS:
+        value[...] = eval_legendre(np.arange(degree + 1)[:, None], xi[:, None, :])
+    else:
+        value[:, 0] = 1.0
+        if degree >= 1:
+            value[:, 1] = xi
+        for k in range(1, degree):
+            np.multiply(((2 * k + 1) / (k + 1)) * xi, value[:, k], out=value[:, k + 1])
+            value[:, k + 1] -= (k / (k + 1)) * value[:, k - 1]
+    # P'_n = sum_k D[k, n] P_k: one product over the degree axis per order.
+    DT = _derivative_matrix_t(degree)
+    for r in range(1, out.shape[0]):
+        np.matmul(DT, out[r - 1], out=out[r])
+
+
+def _fourier(theta, degree, out):
+    """Fill ``out[r]`` (n_vars, 2K + 1, S) with d^r/dtheta^r of 1, cos theta, sin theta, ..."""
+    k = np.arange(1, degree + 1, dtype=float)
+    angles = k[None, :, None] * theta[:, None, :]
+    cos, sin = np.cos(angles), np.sin(angles)
+    for r in range(out.shape[0]):
+        out[r, :, 0] = 1.0 if r == 0 else 0.0
+        # d^r/dtheta^r of cos(k.) and sin(k.) cycle through +-k^r (cos, sin).
+        factor = (k**r)[None, :, None]
+        c, s = [(cos, sin), (-sin, cos), (-cos, -sin)][r]
+        np.multiply(factor, c, out=out[r, :, 1::2])
+        np.multiply(factor, s, out=out[r, :, 2::2])
+
+
+class FactorTables:
+    """The factor tables of one model space, with its coordinate maps precomputed.
+
+    Parameters
+    ----------
+    domain : ndarray of shape (n_states, 2)
+        The box (one period for periodic variables).
+    periodic : ndarray of shape (n_states,) of bool
+        Which variables are periodic.
+    legendre_degree, fourier_degree : int
+        Highest Legendre degree and Fourier frequency.
+    width : int
+        Columns per table.
+    """
+
+    def __init__(self, domain, periodic, legendre_degree, fourier_degree, width):
+        self.n_states = domain.shape[0]
+        self.width = width
+        low, high = domain[:, 0], domain[:, 1]
+        self.families = []
+        for flags, family, to_window, degree in (
+            (~periodic, _legendre, interval_to_window, legendre_degree),
+            (periodic, _fourier, period_to_angle, fourier_degree),
+        ):
+            if flags.any():
+                rows = np.flatnonzero(flags)
+                # The map is affine: window = slope * x + offset, computed as
+                # the family's own map does on the box's corners.
+                start, scale = to_window(low[rows], low[rows], high[rows])
+                columns = degree + 1 if family is _legendre else 2 * degree + 1
+                self.families.append((
+                    family, degree, columns,
+                    None if rows.size == self.n_states else rows,
+                    scale[:, None], start[:, None] - scale[:, None] * low[rows, None],
+                ))
+
+    def __call__(self, X, n_derivatives=1):
+        """Tables at ``X`` (n_samples, n_states): ndarray (n_derivatives + 1, n_states + 1, width, n_samples).
+
+        ``tables[r, i, c, s]``: ``r``-th derivative, with respect to ``x_i``,
+        of column ``c`` of variable ``i``'s family at sample ``s``; zero
+        beyond the family's columns; row ``n_states`` is the dummy variable.
+        """
+        n_samples = X.shape[0]
+        m = self.n_states
+        tables = np.zeros((n_derivatives + 1, m + 1, self.width, n_samples))
+        tables[0, m, 0] = 1.0
+        for family, degree, columns, rows, slope, offset in self.families:
+            if rows is None:
+                window = X.T * slope + offset
+                family(window, degree, tables[:, :m, :columns])
+                target = tables[:, :m, :columns]
+            else:
+                window = X[:, rows].T * slope + offset
+                target = np.empty((n_derivatives + 1, rows.size, columns, n_samples))
+                family(window, degree, target)
+            for r in range(1, n_derivatives + 1):
+                target[r] *= (slope**r)[:, :, None]
+            if rows is not None:
+                tables[:, rows, :columns] = target
+        return tables
+
+
+def factor_tables(space, X, n_derivatives=1):
+    """Factor tables of every variable of ``space`` at the states ``X``.
+
+    Parameters
+    ----------
+    space : ModelSpace
+        Gives the families, degrees and coordinate maps.
+    X : ndarray of shape (n_samples, n_states)
+        States.
+    n_derivatives : {0, 1, 2}, default=1
+        Derivative orders to tabulate beyond the values.
+
+    Returns
+    -------
+    tables : ndarray of shape (n_derivatives + 1, n_states + 1, width, n_samples)
+        ``tables[r, i, c, s]``: ``r``-th derivative, with respect to ``x_i``,
+        of column ``c`` of variable ``i``'s family at sample ``s``.
+    """
+    return space.factor_tables(np.asarray(X, dtype=float), n_derivatives)

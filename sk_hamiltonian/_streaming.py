@@ -1,0 +1,147 @@
+"""What ``partial_fit`` keeps between calls: the normal equations and a few running statistics.
+
+Everything here has a size fixed by the model space (``n_columns**2`` for the
+normal matrix) and the number of state variables, never by the number of
+samples seen, so fitting a long stream of chunks runs in constant memory.
+"""
+
+import numpy as np
+
+
+# Model-space parameters that must not change between partial_fit calls.
+SPACE_PARAMETERS = (
+    "degree", "domain", "periodic", "momentum_degree", "separable", "max_interaction",
+    "fit_on", "damping",
+)
+# States kept (uniformly at random over everything seen) for the time scale.
+RESERVOIR_SIZE = 256
+
+
+def _same(a, b):
+    if a is None or b is None:
+        return a is b
+    try:
+        return bool(np.array_equal(np.asarray(a), np.asarray(b)))
+    except (TypeError, ValueError):
+        return a == b
+
+
+class PartialFitState:
+    """Normal equations and running statistics accumulated over ``partial_fit`` calls.
+
+    Parameters
+    ----------
+    estimator : BaseTrajectoryRegressor
+        Whose model-space parameters are recorded.
+    accumulator : NormalEquations
+        An empty accumulator with the design's column groups.
+    n_states : int
+        State variables.
+    """
+
+    def __init__(self, estimator, accumulator, n_states):
+        params = estimator.get_params()
+        self.parameters = {
+            name: np.array(params[name], copy=True) if isinstance(params[name], np.ndarray)
+            else params[name]
+            for name in SPACE_PARAMETERS if name in params
+        }
+        self.accumulator = accumulator
+        self.n_samples = 0
+        self.mean = np.zeros(n_states)
+        self.m2 = np.zeros(n_states)
+        self.mean_square = np.zeros(n_states)
+        self.reservoir = np.empty((0, n_states))
+        self._rng = np.random.default_rng(0)
+        self.steps = []  # (median step, number of steps) per chunk with trajectories
+
+    def check_parameters(self, estimator):
+        """Raise if a model-space parameter changed since the first call."""
+        params = estimator.get_params()
+        for name, first in self.parameters.items():
+            if not _same(first, params[name]):
+                raise ValueError(
+                    f"partial_fit: `{name}` changed from {first!r} to {params[name]!r} since "
+                    f"the first call, but the accumulated normal equations belong to the "
+                    f"first model space. Keep the model-space parameters fixed between "
+                    f"partial_fit calls, or start over with fit (or a clone)."
+                )
+
+    def add(self, blocks, data, step):
+        """Accumulate one chunk: its design blocks, states and training step."""
+        self.accumulator.add_blocks(blocks)
+        states = data.states
+        n = states.shape[0]
+        # Chan et al.'s parallel update of the mean and sum of squared deviations.
+        chunk_mean = states.mean(axis=0)
+        chunk_m2 = ((states - chunk_mean) ** 2).sum(axis=0)
+        total = self.n_samples + n
+        delta = chunk_mean - self.mean
+        self.m2 += chunk_m2 + delta**2 * self.n_samples * n / total
+        self.mean += delta * n / total
+        self.mean_square += ((states**2).sum(axis=0) - n * self.mean_square) / total
+        self.n_samples = total
+        self._sample(states)
+        if np.isfinite(step):
+            self.steps.append((step, data.n_rows("steps")))
+
+    def _sample(self, states):
+        """Reservoir sampling (algorithm R) of all states seen, vectorized per chunk."""
+        seen = self.n_samples - states.shape[0]
+        room = max(0, RESERVOIR_SIZE - self.reservoir.shape[0])
+        self.reservoir = np.vstack([self.reservoir, states[:room]])
+        rest = states[room:]
+        if rest.shape[0]:
+            index = np.arange(seen + room, seen + room + rest.shape[0])
+            slots = (self._rng.random(rest.shape[0]) * (index + 1)).astype(np.intp)
+            chosen = slots < RESERVOIR_SIZE
+            # In order, so that a later state replaces an earlier one in the same slot.
+            self.reservoir[slots[chosen]] = rest[chosen]
+
+    def merge(self, other):
+        """Add another state built over different samples (e.g. on another worker)."""
+        self.accumulator += other.accumulator
+        n, total = other.n_samples, self.n_samples + other.n_samples
+        if n:
+            delta = other.mean - self.mean
+            self.m2 += other.m2 + delta**2 * self.n_samples * n / total
+            self.mean += delta * n / total
+            self.mean_square += (other.mean_square - self.mean_square) * n / total
+            # Keep each reservoir's share in proportion to the samples it stands for.
+            pooled = np.vstack([self.reservoir, other.reservoir])
+            if pooled.shape[0] > RESERVOIR_SIZE:
+                share = np.r_[
+                    np.full(self.reservoir.shape[0], self.n_samples / max(1, self.reservoir.shape[0])),
+                    np.full(other.reservoir.shape[0], n / max(1, other.reservoir.shape[0])),
+                ]
+                keep = self._rng.choice(
+                    pooled.shape[0], RESERVOIR_SIZE, replace=False, p=share / share.sum()
+                )
+                pooled = pooled[np.sort(keep)]
+            self.reservoir = pooled
+            self.n_samples = total
+        self.steps += other.steps
+        return self
+
+    def normal_equations(self):
+        """The accumulated ``(A^T A, A^T b)``."""
+        return self.accumulator.result()
+
+    def scale(self):
+        """Standard deviation of every state variable over all samples seen (1 where zero)."""
+        std = np.sqrt(self.m2 / max(1, self.n_samples))
+        return np.where(std > 0, std, 1.0)
+
+    def magnitude(self):
+        """Root mean square of every state variable over all samples seen."""
+        return np.sqrt(self.mean_square)
+
+    def training_step(self):
+        """Median step over the chunks (weighted median of their medians); NaN without steps."""
+        if not self.steps:
+            return float("nan")
+        medians = np.array([m for m, _ in self.steps])
+        counts = np.array([c for _, c in self.steps], dtype=float)
+        order = np.argsort(medians)
+        cumulative = np.cumsum(counts[order])
+        return float(medians[order][np.searchsorted(cumulative, cumulative[-1] / 2)])
