@@ -56,7 +56,7 @@ from sk_hamiltonian.datasets import PAPER_DT, load_system, make_trajectories  # 
 T_END = 20.0
 METHODS = ("SP-derivatives", "SP-steps", "non-SP-derivatives", "non-SP-steps")
 CLEAN = {
-    "exponential": [4, 5, 6, 7, 8],
+    "exponential": list(range(4, 15)),
     "henon_heiles": [3, 4, 5, 6],
     "cherry": [3, 4, 5, 6],
     "double_pendulum": [15, 16],

@@ -119,27 +119,6 @@ class ModelSpace:
         """Rows of ``X`` with a non-periodic variable outside its interval."""
         return outside_domain(X, self.domain, self.periodic, slack)
 
-    def tables(self, X, n_derivatives=1):
-        """1-D tables of every variable, derivatives already in ``X``'s coordinates.
-
-        Parameters
-        ----------
-        X : ndarray of shape (n_samples, n_states)
-            Points.
-        n_derivatives : {0, 1, 2}, default=1
-            Derivative orders to tabulate beyond the values.
-
-        Returns
-        -------
-        tables : list of ndarray of shape (n_samples, n_states + 1, width)
-            ``tables[r][s, i, c]``: ``r``-th derivative of column ``c`` of
-            variable ``i``'s family at sample ``s``; row ``n_states`` is the
-            dummy variable of the slot layout (``1``, derivatives ``0``).
-            Views of the kernels' layout (see :mod:`.tables`).
-        """
-        X = np.asarray(X, dtype=float)
-        return list(np.moveaxis(self.factor_tables(X, n_derivatives), -1, 1))
-
     # ------------------------------------------------------------ evaluation
     # The kernels work terms-major (samples last); these methods return the
     # samples-first arrays the estimators use, as transposed views.

@@ -130,24 +130,3 @@ class FactorTables:
             if rows is not None:
                 tables[:, rows, :columns] = target
         return tables
-
-
-def factor_tables(space, X, n_derivatives=1):
-    """Factor tables of every variable of ``space`` at the states ``X``.
-
-    Parameters
-    ----------
-    space : ModelSpace
-        Gives the families, degrees and coordinate maps.
-    X : ndarray of shape (n_samples, n_states)
-        States.
-    n_derivatives : {0, 1, 2}, default=1
-        Derivative orders to tabulate beyond the values.
-
-    Returns
-    -------
-    tables : ndarray of shape (n_derivatives + 1, n_states + 1, width, n_samples)
-        ``tables[r, i, c, s]``: ``r``-th derivative, with respect to ``x_i``,
-        of column ``c`` of variable ``i``'s family at sample ``s``.
-    """
-    return space.factor_tables(np.asarray(X, dtype=float), n_derivatives)
