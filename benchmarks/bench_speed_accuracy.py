@@ -37,6 +37,16 @@ Outputs, in ``--output`` (default ``benchmarks/results/``):
 for the scenes beyond the paper alone, ``speed_vs_accuracy_scenes.png``
 (``--replot`` redraws the charts from the CSV).
 
+``--front`` runs a sweep instead, on the paper's scenes: SP and non-SP at
+several degrees (``FRONT_DEGREES``) and PySINDy at several STLSQ thresholds
+(``FRONT_THRESHOLDS``, library degree of the scene), each simulated with RK4
+from ``u0*`` and the fresh states. It writes ``speed_front.csv`` and
+``speed_vs_accuracy_front.png``: one line per method per scene, error at
+``T = 20`` against fit + simulation time, so each method is seen as a front
+over its own knob rather than as one point. PySINDy's simulation time there
+is RK4 on its vectorized model (:class:`_common.SindyField`), not through
+``predict`` (about 100 times slower), which favours PySINDy.
+
 Run ``python benchmarks/bench_speed_accuracy.py`` (see ``benchmarks/README.md``
 for the time it takes) or with ``--quick`` (a smoke run: two paper scenes and
 a four-particle chain).
@@ -111,6 +121,7 @@ BEYOND_PAPER = [
             sindy_fourier=5, **DOUBLE_PENDULUM_FULL),
     C.Scene("FPUT chain 8", "fput_chain", 4, 3000, 2, **FPUT),
 ]
+PAPER_SCENES = list(SCENES)
 SCENES += BEYOND_PAPER
 # The quick run keeps one scene beyond the paper, the cheapest (a short chain):
 # the double pendulum's trigonometric AVF rollouts alone would take half the
@@ -123,6 +134,14 @@ QUICK_BEYOND_PAPER = [
     C.Scene("FPUT chain 4", "fput_chain", 4, 100, 2, **dict(FPUT, params=dict(n_particles=4))),
 ]
 QUICK_SCENES += QUICK_BEYOND_PAPER
+# The front sweep: the knob each method has (SP, non-SP: degree; PySINDy: the
+# STLSQ threshold at the scene's degree). Degrees stop where the fits become
+# ill-conditioned or slow enough to dominate the run.
+FRONT_DEGREES = {"single_pendulum": (2, 4, 6, 8, 10), "henon_heiles": (2, 3, 4, 5, 6),
+                 "cherry": (2, 3, 4, 5, 6)}
+FRONT_THRESHOLDS = (0.0, 0.001, 0.01, 0.1, 0.3, 1.0)
+FRONT_COLUMNS = ["scene", "method", "knob", "n_params", "fit_s", "sim_s", "total_s",
+                 "err_T20", "fresh_err_T20", "fresh_failed", "n_fresh", "note"]
 HORIZONS = (10.0, 20.0)
 THRESHOLDS = (0.0, 0.001, 0.01, 0.1)  # PySINDy's default is 0.1
 
@@ -146,6 +165,12 @@ def parse_args(argv=None):
                         help="timing repeats, best kept (default 3, quick 1)")
     parser.add_argument("--n-fresh", type=int, default=None,
                         help="fresh test initial states (default 8, quick 2)")
+    parser.add_argument("--scenes", choices=("all", "paper", "beyond"), default="all",
+                        help="which scenes of the full run: the paper's, those beyond it, or all "
+                        "(the scenes beyond the paper alone fit in one shorter run)")
+    parser.add_argument("--front", action="store_true",
+                        help="sweep degrees (SP, non-SP) and thresholds (PySINDy) on the "
+                        "paper's scenes; writes speed_front.csv and speed_vs_accuracy_front.png")
     parser.add_argument("--replot", action="store_true",
                         help="only redraw the charts from speed_accuracy.csv in --output")
     return parser.parse_args(argv)
@@ -411,6 +436,102 @@ def plot(rows, path):
     plt.close(fig)
 
 
+def front_scene(scene, args, ps):
+    """Rows of the front sweep on one scene: one per (method, degree or threshold).
+
+    A fit that raises (e.g. fewer equations than unknowns) or a rollout that
+    blows up is a row with infinite error, so failures are drawn, not dropped.
+    """
+    system, Xt, deriv_s = C.make_data(scene)
+    x0, t, truth = C.test_states(system, args.n_fresh, HORIZONS[-1], scene.dt,
+                                 seed=scene.seed + 1, domain=scene.data_domain(system))
+    u0 = system.initial_state
+    rows = []
+
+    def add(method, knob, n_params, fit_s, sim_s, Y, note=""):
+        err = C.relative_error(Y, truth, t, HORIZONS[-1], system.periodic)
+        fresh = err[1:]
+        rows.append(dict(scene=scene.label, method=method, knob=knob, n_params=n_params,
+                         fit_s=fit_s, sim_s=sim_s, total_s=fit_s + sim_s, err_T20=err[0],
+                         fresh_err_T20=float(np.median(fresh)) if fresh.size else np.nan,
+                         fresh_failed=int(np.sum(~np.isfinite(fresh))),
+                         n_fresh=fresh.size, note=note))
+
+    failed = np.full((x0.shape[0], t.size, x0.shape[1]), np.nan)
+    for name, cls in (("SP-RK4", HamiltonianRegressor), ("non-SP-RK4", VectorFieldRegressor)):
+        for degree in FRONT_DEGREES[scene.system]:
+            try:
+                fit_s, model = C.best_time(lambda: cls(degree).fit(Xt), args.repeats)
+            except Exception as error:  # a failed fit is a point of the front
+                add(name, degree, 0, np.nan, np.nan, failed, f"fit failed: {error}"[:120])
+                continue
+            sim_s = time_simulation(model, u0, t, "rk4", args.repeats)
+            Y, _ = C.rollout(model, x0, t, "rk4")
+            add(name, degree, int(np.count_nonzero(model.coef_)), deriv_s + fit_s,
+                sim_s if np.isfinite(sim_s) else 0.0, Y)
+    if ps is None:
+        return rows
+    for threshold in FRONT_THRESHOLDS:
+        fit_s, model = C.best_time(
+            lambda: C.fit_sindy(ps, Xt, scene.degree, threshold, scene.dt), args.repeats)
+        field = C.SindyField(model, np.concatenate(C.split_layout(Xt)[0])[:200])
+        sim_s, _ = C.best_time(lambda: C.rk4_rollout(field, u0, t), args.repeats)
+        Y, _ = C.rollout(field, x0, t)
+        add("PySINDy-RK4", threshold, field.n_params, deriv_s + fit_s, sim_s, Y,
+            f"degree {scene.degree}; vectorized RK4")
+    return rows
+
+
+FRONT_STYLE = {"SP-RK4": ("o", "-", "C0"), "non-SP-RK4": ("^", "--", "C1"),
+               "PySINDy-RK4": ("D", ":", "C2")}
+
+
+def plot_front(rows, path):
+    """One panel per scene, one line per method over its knob; failures at the top."""
+    scenes = list(dict.fromkeys(r["scene"] for r in rows))
+    ncols = 2
+    nrows = -(-len(scenes) // ncols)
+    fig, axes = plt.subplots(nrows, ncols, figsize=(13, 5.2 * nrows), squeeze=False)
+    for ax in axes.flat[len(scenes):]:
+        ax.set_visible(False)
+    for ax, scene in zip(axes.flat, scenes):
+        here = [r for r in rows if r["scene"] == scene]
+        finite = [r["err_T20"] for r in here if np.isfinite(r["err_T20"]) and r["err_T20"] > 0]
+        top = 10 ** np.ceil(np.log10(max(finite))) * 3 if finite else 10.0
+        times = [r["total_s"] for r in here if np.isfinite(r["total_s"])]
+        for method, (marker, ls, color) in FRONT_STYLE.items():
+            line = [r for r in here if r["method"] == method]
+            if not line:
+                continue
+            xs = [r["total_s"] if np.isfinite(r["total_s"]) else min(times) for r in line]
+            ys = [r["err_T20"] if np.isfinite(r["err_T20"]) else top for r in line]
+            ax.plot(xs, ys, ls=ls, color=color, lw=1.5, label=method)
+            for r, x, y in zip(line, xs, ys):
+                bad = not np.isfinite(r["err_T20"])
+                ax.scatter(x, y, marker="x" if bad else marker, s=90 if bad else 55,
+                           color=color, edgecolors=None if bad else "k",
+                           linewidths=2.5 if bad else 0.5, zorder=3)
+                knob = (f"n={int(r['knob'])}" if method != "PySINDy-RK4"
+                        else f"thr={r['knob']:g}")
+                ax.annotate(knob, (x, y), textcoords="offset points", xytext=(5, 3),
+                            fontsize=9, color=color)
+        ax.axhline(top, color="0.6", lw=0.8, ls=":")
+        ax.set_xscale("log")
+        ax.set_yscale("log")
+        ax.set_title(scene, fontsize=13)
+        ax.set_xlabel("fit + RK4 simulation to T=20 [s] (log)", fontsize=11)
+        ax.set_ylabel("relative error on [0, 20] from u0* (log)", fontsize=11)
+        ax.tick_params(labelsize=10)
+        ax.grid(True, which="both", alpha=0.3)
+        ax.legend(fontsize=10, loc="best")
+    fig.suptitle("Speed vs accuracy fronts: SP and non-SP over degrees n, PySINDy over its "
+                 "STLSQ threshold (x at the dotted line = failed); one run, BLAS on 1 thread",
+                 fontsize=12)
+    fig.tight_layout(rect=(0, 0, 1, 0.96))
+    fig.savefig(path, dpi=110)
+    plt.close(fig)
+
+
 def main(argv=None):
     args = parse_args(argv)
     # The full-circle pendulum's test orbits leave the momentum box of its data
@@ -421,6 +542,11 @@ def main(argv=None):
     args.n_fresh = args.n_fresh if args.n_fresh is not None else (2 if args.quick else 8)
     args.output.mkdir(parents=True, exist_ok=True)
     if args.replot:
+        if args.front:
+            plot_front(read_rows(args.output / "speed_front.csv"),
+                       args.output / "speed_vs_accuracy_front.png")
+            print(f"# redrew the front chart in {args.output}")
+            return 0
         plot_charts(read_rows(args.output / "speed_accuracy.csv"), args.output)
         print(f"# redrew the charts in {args.output}")
         return 0
@@ -434,8 +560,27 @@ def main(argv=None):
         print(f"# PySINDy rows skipped: {reason}")
     else:
         print(f"# baseline: {reason}")
+    if args.front:
+        rows = []
+        scenes = QUICK_SCENES[:2] if args.quick else PAPER_SCENES
+        for scene in scenes:
+            print(f"# front {scene.label}: M={scene.n_trajectories}, J={scene.n_intervals}, "
+                  f"dt={scene.dt}, noise={scene.noise}, degrees "
+                  f"{FRONT_DEGREES[scene.system]}, thresholds {FRONT_THRESHOLDS}", flush=True)
+            rows += front_scene(scene, args, ps)
+        C.write_csv(args.output / "speed_front.csv", rows, FRONT_COLUMNS)
+        plot_front(rows, args.output / "speed_vs_accuracy_front.png")
+        C.print_table(rows, FRONT_COLUMNS[:-1])
+        for r in rows:
+            if r["note"] and "failed" in r["note"]:
+                print(f"# {r['scene']} / {r['method']} {r['knob']}: {r['note']}")
+        print(f"# wrote {args.output}/speed_front.csv, speed_vs_accuracy_front.png "
+              f"in {time.perf_counter() - start:.0f} s")
+        return 0
     rows = []
-    for scene in (QUICK_SCENES if args.quick else SCENES):
+    scenes = QUICK_SCENES if args.quick else {
+        "all": SCENES, "paper": PAPER_SCENES, "beyond": BEYOND_PAPER}[args.scenes]
+    for scene in scenes:
         print(f"# scene {scene.label}: M={scene.n_trajectories}, J={scene.n_intervals}, "
               f"dt={scene.dt}, noise={scene.noise}, degree={scene.degree}", flush=True)
         rows += run_scene(scene, args, ps)
