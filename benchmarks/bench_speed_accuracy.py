@@ -73,6 +73,7 @@ import matplotlib  # noqa: E402
 
 matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
+import matplotlib.ticker  # noqa: E402
 import numpy as np  # noqa: E402
 
 import _common as C  # noqa: E402
@@ -452,7 +453,9 @@ def front_scene(scene, args, ps):
         err = C.relative_error(Y, truth, t, HORIZONS[-1], system.periodic)
         fresh = err[1:]
         rows.append(dict(scene=scene.label, method=method, knob=knob, n_params=n_params,
-                         fit_s=fit_s, sim_s=sim_s, total_s=fit_s + sim_s, err_T20=err[0],
+                         fit_s=fit_s, sim_s=sim_s,
+                         total_s=fit_s + sim_s if np.isfinite(sim_s) else fit_s,
+                         err_T20=err[0],
                          fresh_err_T20=float(np.median(fresh)) if fresh.size else np.nan,
                          fresh_failed=int(np.sum(~np.isfinite(fresh))),
                          n_fresh=fresh.size, note=note))
@@ -467,8 +470,10 @@ def front_scene(scene, args, ps):
                 continue
             sim_s = time_simulation(model, u0, t, "rk4", args.repeats)
             Y, _ = C.rollout(model, x0, t, "rk4")
-            add(name, degree, int(np.count_nonzero(model.coef_)), deriv_s + fit_s,
-                sim_s if np.isfinite(sim_s) else 0.0, Y)
+            # A rollout from u0* that fails has no simulation time: the point
+            # is drawn at its fit time (as a failure) and the CSV says NaN.
+            add(name, degree, int(np.count_nonzero(model.coef_)), deriv_s + fit_s, sim_s, Y,
+                "" if np.isfinite(sim_s) else "simulation from u0* failed")
     if ps is None:
         return rows
     for threshold in FRONT_THRESHOLDS:
@@ -480,6 +485,12 @@ def front_scene(scene, args, ps):
         add("PySINDy-RK4", threshold, field.n_params, deriv_s + fit_s, sim_s, Y,
             f"degree {scene.degree}; vectorized RK4")
     return rows
+
+
+def _two_and_five(x, _):
+    """Tick label ``x`` if it is 2 or 5 times a power of ten, else none."""
+    mantissa = x / 10 ** np.floor(np.log10(x))
+    return f"{x:g}" if np.isclose(mantissa, 2) or np.isclose(mantissa, 5) else ""
 
 
 FRONT_STYLE = {"SP-RK4": ("o", "-", "C0"), "non-SP-RK4": ("^", "--", "C1"),
@@ -505,7 +516,10 @@ def plot_front(rows, path):
                 continue
             xs = [r["total_s"] if np.isfinite(r["total_s"]) else min(times) for r in line]
             ys = [r["err_T20"] if np.isfinite(r["err_T20"]) else top for r in line]
-            ax.plot(xs, ys, ls=ls, color=color, lw=1.5, label=method)
+            # The line joins the knob's values in order through the points
+            # that did not fail; failures stand alone at the top.
+            ok = [(x, y) for r, x, y in zip(line, xs, ys) if np.isfinite(r["err_T20"])]
+            ax.plot(*(zip(*ok) if ok else ([], [])), ls=ls, color=color, lw=1.5, label=method)
             for r, x, y in zip(line, xs, ys):
                 bad = not np.isfinite(r["err_T20"])
                 ax.scatter(x, y, marker="x" if bad else marker, s=90 if bad else 55,
@@ -518,6 +532,10 @@ def plot_front(rows, path):
         ax.axhline(top, color="0.6", lw=0.8, ls=":")
         ax.set_xscale("log")
         ax.set_yscale("log")
+        # Matplotlib labels every minor tick of a narrow log axis, and they
+        # overlap; label 2 and 5 of each decade only.
+        ax.xaxis.set_minor_formatter(matplotlib.ticker.FuncFormatter(_two_and_five))
+        ax.xaxis.set_major_formatter(matplotlib.ticker.FuncFormatter(lambda x, _: f"{x:g}"))
         ax.set_title(scene, fontsize=13)
         ax.set_xlabel("fit + RK4 simulation to T=20 [s] (log)", fontsize=11)
         ax.set_ylabel("relative error on [0, 20] from u0* (log)", fontsize=11)
