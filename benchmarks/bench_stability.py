@@ -33,9 +33,14 @@ stays in the domain, so a failure is the model's, not the truth's):
 Error = median over the test states of the relative trajectory error on
 ``[0, horizon]``; a rollout that fails before the horizon counts as ``inf``.
 
-Outputs, in ``--output`` (default ``benchmarks/results/``): ``stability.csv``
-and ``stability.png``. ``python benchmarks/bench_stability.py`` takes about
-3-4 minutes on 2 cores with pysindy installed; ``--quick`` is a < 30 s smoke run.
+Outputs, in ``--output`` (default ``benchmarks/results/``): ``stability.csv``,
+``stability.png`` (all panels, an overview), ``stability_<panel>.png`` (each
+panel alone with larger fonts, for the documentation: ``noise``,
+``trajectories``, ``conditioning``, ``degree``, ``long_horizon``, ``cherry``)
+and ``stability_plot.pickle`` (what the charts need, so that ``--replot``
+redraws them without rerunning). ``python benchmarks/bench_stability.py``
+took 6 min 53 s on 2 shared cores with pysindy installed (2026-11-23, load
+average about 1); ``--quick`` is a smoke run of about a minute.
 """
 
 import os
@@ -48,6 +53,7 @@ import argparse  # noqa: E402
 import datetime  # noqa: E402
 import itertools  # noqa: E402
 import math  # noqa: E402
+import pickle  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
 import warnings  # noqa: E402
@@ -93,6 +99,8 @@ def parse_args(argv=None):
                         default=Path(__file__).resolve().parent / "results",
                         help="directory for CSV and PNG outputs")
     parser.add_argument("--no-sindy", action="store_true", help="skip PySINDy even if installed")
+    parser.add_argument("--replot", action="store_true",
+                        help="only redraw the charts from stability_plot.pickle in --output")
     return parser.parse_args(argv)
 
 
@@ -501,6 +509,10 @@ def plot(rows, long_curves, cherry, cor, cfg, path):
             for name, draw in PANELS:
                 fig, ax = plt.subplots(figsize=(10, 6.2))
                 draw(ax, rows, long_curves, cherry, cor, cfg)
+                # In the overview one legend serves the row; alone, each
+                # panel needs its own.
+                if ax.get_legend() is None and ax.get_legend_handles_labels()[1]:
+                    ax.legend(fontsize=11)
                 fig.tight_layout()
                 fig.savefig(path.with_name(f"{path.stem}_{name}.png"), dpi=100)
                 plt.close(fig)
@@ -545,6 +557,11 @@ def pivot(rows, experiment, with_cond=False):
 def main(argv=None):
     args = parse_args(argv)
     args.output.mkdir(parents=True, exist_ok=True)
+    if args.replot:
+        with open(args.output / "stability_plot.pickle", "rb") as handle:
+            plot(*pickle.load(handle), args.output / "stability.png")
+        print(f"# redrew the charts in {args.output}")
+        return 0
     ps, reason = (None, "disabled by --no-sindy") if args.no_sindy else C.sindy_status()
     if args.quick:
         cfg = dict(M=60, n_fresh=1, horizon=20.0, h=0.02, noises=(0.0, 0.2),
@@ -594,6 +611,10 @@ def main(argv=None):
         for key in COLUMNS:
             r.setdefault(key, np.nan if key not in ("note", "status") else "")
     C.write_csv(args.output / "stability.csv", rows, COLUMNS)
+    # The curves behind the long-horizon and Cherry panels are not in the
+    # CSV; keep everything the charts need so that --replot can redraw them.
+    with open(args.output / "stability_plot.pickle", "wb") as handle:
+        pickle.dump((rows, long_curves, cherry, cor, cfg), handle)
     plot(rows, long_curves, cherry, cor, cfg, args.output / "stability.png")
     # Summaries; every number is also in stability.csv.
     for experiment, title, with_cond in (
