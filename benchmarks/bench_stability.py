@@ -33,9 +33,14 @@ stays in the domain, so a failure is the model's, not the truth's):
 Error = median over the test states of the relative trajectory error on
 ``[0, horizon]``; a rollout that fails before the horizon counts as ``inf``.
 
-Outputs, in ``--output`` (default ``benchmarks/results/``): ``stability.csv``
-and ``stability.png``. ``python benchmarks/bench_stability.py`` takes about
-3-4 minutes on 2 cores with pysindy installed; ``--quick`` is a < 30 s smoke run.
+Outputs, in ``--output`` (default ``benchmarks/results/``): ``stability.csv``,
+``stability.png`` (all panels, an overview), ``stability_<panel>.png`` (each
+panel alone with larger fonts, for the documentation: ``noise``,
+``trajectories``, ``conditioning``, ``degree``, ``long_horizon``, ``cherry``)
+and ``stability_plot.pickle`` (what the charts need, so that ``--replot``
+redraws them without rerunning). ``python benchmarks/bench_stability.py``
+took 6 min 53 s on 2 shared cores with pysindy installed (2026-11-23, load
+average about 1); ``--quick`` is a smoke run of about a minute.
 """
 
 import os
@@ -48,6 +53,7 @@ import argparse  # noqa: E402
 import datetime  # noqa: E402
 import itertools  # noqa: E402
 import math  # noqa: E402
+import pickle  # noqa: E402
 import sys  # noqa: E402
 import time  # noqa: E402
 import warnings  # noqa: E402
@@ -93,6 +99,8 @@ def parse_args(argv=None):
                         default=Path(__file__).resolve().parent / "results",
                         help="directory for CSV and PNG outputs")
     parser.add_argument("--no-sindy", action="store_true", help="skip PySINDy even if installed")
+    parser.add_argument("--replot", action="store_true",
+                        help="only redraw the charts from stability_plot.pickle in --output")
     return parser.parse_args(argv)
 
 
@@ -294,6 +302,17 @@ def cherry_blowup(ps, cfg):
 
 
 # ---------------------------------------------------------------- chart
+
+# Multiplies the hand-set font sizes of the panels: 1 in the combined 2 x 3
+# overview, larger when a panel is drawn alone for the documentation.
+FONT_SCALE = 1.0
+
+
+def _fs(size):
+    """A panel font size, scaled by ``FONT_SCALE``."""
+    return size * FONT_SCALE
+
+
 def _mark_failures(ax, rows, x_key, top):
     """Mark what went wrong at each point instead of dropping it.
 
@@ -312,13 +331,13 @@ def _mark_failures(ax, rows, x_key, top):
         elif not np.isfinite(r["error"]):
             ax.scatter(x, band, marker="x", s=80, color=style["color"], linewidths=2.4)
             ax.annotate(f"t={r['fail_time']:.2g}", (x, band), textcoords="offset points",
-                        xytext=(-2, -4), fontsize=5.5, color=style["color"], rotation=90,
+                        xytext=(-2, -4), fontsize=_fs(5.5), color=style["color"], rotation=90,
                         ha="center", va="top")
         elif r["status"] == "failed":
             ax.scatter(x, r["error"], marker="x", s=80, color=style["color"], linewidths=2.4,
                        zorder=4)
             ax.annotate(f"{r['n_failed']}/{r['n_test']} failed", (x, r["error"]),
-                        textcoords="offset points", xytext=(4, 4), fontsize=5.5,
+                        textcoords="offset points", xytext=(4, 4), fontsize=_fs(5.5),
                         color=style["color"])
         elif r["status"] == "escaped":
             ax.scatter(x, r["error"], marker="o", s=130, facecolors="none",
@@ -342,40 +361,40 @@ def _error_panel(ax, rows, x_key, xlabel, title, logx=False):
         ax.set_xscale("log")
     ax.set_xlabel(xlabel)
     ax.set_ylabel("median rel. error on [0, 20]")
-    ax.set_title(title, fontsize=9.5)
+    ax.set_title(title, fontsize=_fs(9.5))
     ax.grid(True, which="both", alpha=0.3)
 
 
-def plot(rows, long_curves, cherry, cor, cfg, path):
-    fig, axes = plt.subplots(2, 3, figsize=(17, 10))
-    ax = axes[0, 0]
+def _panel_noise(ax, rows, long_curves, cherry, cor, cfg):
     sub = [r for r in rows if r["experiment"] == "noise"]
     for r in sub:
         r["pct"] = 100 * r["value"]
     _error_panel(ax, sub, "pct", "relative noise [%]",
                  f"noise: Henon-Heiles, M={cfg['M']}, J=40, n=3")
-    ax.legend(fontsize=7, loc="lower right")
+    ax.legend(fontsize=_fs(7), loc="lower right")
 
-    ax = axes[0, 1]
+
+def _panel_trajectories(ax, rows, long_curves, cherry, cor, cfg):
     sub = [r for r in rows if r["experiment"] == "n_trajectories"]
     _error_panel(ax, sub, "value", "trajectories M (J=2, K=3M state pairs)",
                  "fewer trajectories: pendulum clean, n=6", logx=True)
     ax.axvline(27 / 6, color="tab:blue", ls="--", lw=0.8)
     ax.axvline(28 / 3, color="tab:orange", ls="--", lw=0.8)
-    ax.text(27 / 6, 0.02, " SP: M=4.5 equations=unknowns", rotation=90, fontsize=6.5,
+    ax.text(27 / 6, 0.02, " SP: M=4.5 equations=unknowns", rotation=90, fontsize=_fs(6.5),
             color="tab:blue", transform=ax.get_xaxis_transform())
-    ax.text(28 / 3, 0.02, " non-SP: M=9.3", rotation=90, fontsize=6.5, color="tab:orange",
+    ax.text(28 / 3, 0.02, " non-SP: M=9.3", rotation=90, fontsize=_fs(6.5), color="tab:orange",
             transform=ax.get_xaxis_transform())
     if cor and cor["M"] <= 3 * max(r["value"] for r in sub):
         ax.axvline(cor["M"], color="k", ls=":", lw=0.8)
 
-    ax = axes[0, 2]
+
+def _panel_conditioning(ax, rows, long_curves, cherry, cor, cfg):
+    sub = [r for r in rows if r["experiment"] == "n_trajectories"]
     for method in METHODS:
         pts = [(r["value"], r["cond"]) for r in sub
                if r["method"] == method and np.isfinite(r.get("cond", np.nan))]
         if pts:
             ax.plot(*zip(*pts), label=method, lw=1.2, ms=5, **STYLE[method])
-    deg = [r for r in rows if r["experiment"] == "degree"]
     ax.set_xscale("log")
     ax.set_yscale("log")
     ax.set_xlabel("trajectories M (J=2)")
@@ -384,11 +403,13 @@ def plot(rows, long_curves, cherry, cor, cfg, path):
     if cor:
         title += (f"\nCor. 3.4 (r=1): K_N={cor['K_N']:.0f}, needs K>={cor['K']:.2g} pairs "
                   f"(M>={cor['M']:.2g})")
-    ax.set_title(title, fontsize=9.5)
+    ax.set_title(title, fontsize=_fs(9.5))
     ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize=7)
+    ax.legend(fontsize=_fs(7))
 
-    ax = axes[1, 0]
+
+def _panel_degree(ax, rows, long_curves, cherry, cor, cfg):
+    deg = [r for r in rows if r["experiment"] == "degree"]
     _error_panel(ax, deg, "value", "polynomial degree n",
                  "degree too high for the data: pendulum clean, M=30, J=2")
     twin = ax.twinx()
@@ -398,9 +419,10 @@ def plot(rows, long_curves, cherry, cor, cfg, path):
         if pts:
             twin.plot(*zip(*pts), ls=":", lw=1, color=STYLE[method]["color"])
     twin.set_yscale("log")
-    twin.set_ylabel("cond (dotted)", fontsize=8)
+    twin.set_ylabel("cond (dotted)", fontsize=_fs(8))
 
-    ax = axes[1, 1]
+
+def _panel_long_horizon(ax, rows, long_curves, cherry, cor, cfg):
     for noise, (t, truth, curves) in long_curves.items():
         for method, (Y, fail_time, escape) in curves.items():
             # Survival: fraction of test states still finite and inside the domain.
@@ -414,7 +436,7 @@ def plot(rows, long_curves, cherry, cor, cfg, path):
     summary = [f"{r['method']:<12s} {r['value']:>4.0%}: failed {r['n_failed']}/{r['n_test']}, "
                f"escaped {r['n_escaped']}/{r['n_test']}"
                for r in rows if r["experiment"] == "long_horizon" and r["status"] != "unfit"]
-    ax.text(0.98, 0.35, "\n".join(summary), transform=ax.transAxes, fontsize=6.5, ha="right",
+    ax.text(0.98, 0.35, "\n".join(summary), transform=ax.transAxes, fontsize=_fs(6.5), ha="right",
             va="bottom", family="monospace",
             bbox=dict(facecolor="white", alpha=0.85, edgecolor="0.7"))
     ax.set_ylim(-0.08, 1.05)
@@ -423,11 +445,12 @@ def plot(rows, long_curves, cherry, cor, cfg, path):
     noises = " / ".join(f"{n:.0%}" for n in sorted(long_curves))
     ax.set_title(f"long horizon: Henon-Heiles, M={cfg['M']}, J=40, noise {noises} "
                  f"(solid / dashed);\n"
-                 "x on the axis = non-finite (SimulationError) at that t", fontsize=9.5)
-    ax.legend(fontsize=6.5, loc="center left")
+                 "x on the axis = non-finite (SimulationError) at that t", fontsize=_fs(9.5))
+    ax.legend(fontsize=_fs(6.5), loc="center left")
     ax.grid(True, alpha=0.3)
 
-    ax = axes[1, 2]
+
+def _panel_cherry(ax, rows, long_curves, cherry, cor, cfg):
     if cherry is not None:
         t, norms = cherry
         for method, (norm, fail) in norms.items():
@@ -439,7 +462,7 @@ def plot(rows, long_curves, cherry, cor, cfg, path):
         lines = [f"{r['method']}: |u|>10 at {C.fmt(r['blowup_time'], 4, 'never')}, "
                  f"non-finite at {C.fmt(r['fail_time'], 4, 'never')}"
                  for r in rows if r["experiment"] == "cherry_blowup"]
-        ax.text(0.02, 0.6, "\n".join(lines), transform=ax.transAxes, fontsize=7,
+        ax.text(0.02, 0.6, "\n".join(lines), transform=ax.transAxes, fontsize=_fs(7),
                 va="top", family="monospace",
                 bbox=dict(facecolor="white", alpha=0.85, edgecolor="0.7"))
         ax.axhline(10, color="0.5", lw=0.8, ls=":")
@@ -447,18 +470,54 @@ def plot(rows, long_curves, cherry, cor, cfg, path):
         ax.set_yscale("log")
         ax.set_xlabel("t")
         ax.set_ylabel("|u(t)|")
-        ax.set_title("Cherry: true blow-up vs learned (x = non-finite)", fontsize=9.5)
-        ax.legend(fontsize=7, loc="upper left")
+        ax.set_title("Cherry: true blow-up vs learned (x = non-finite)", fontsize=_fs(9.5))
+        ax.legend(fontsize=_fs(7), loc="upper left")
         ax.grid(True, which="both", alpha=0.3)
+
+
+# Panel name (suffix of its own PNG) and drawing function, in the combined
+# figure's reading order.
+PANELS = (("noise", _panel_noise), ("trajectories", _panel_trajectories),
+          ("conditioning", _panel_conditioning), ("degree", _panel_degree),
+          ("long_horizon", _panel_long_horizon), ("cherry", _panel_cherry))
+FAILURE_KEY = ("Error panels: above the dotted line, bold x = most rollouts failed (non-finite; "
+               "t = first failure), thin x = could not be fitted (fewer equations than unknowns); "
+               "on a curve, x = some rollouts failed (k/n), o = a rollout left the training box.")
+
+
+def plot(rows, long_curves, cherry, cor, cfg, path):
+    """``stability.png`` (all panels, 2 x 3) and one readable PNG per panel.
+
+    The combined figure is an overview; at page width its small print is
+    unreadable, so each panel is also saved alone (``stability_<panel>.png``)
+    with fonts scaled up, for the documentation.
+    """
+    global FONT_SCALE
+    FONT_SCALE = 1.0
+    fig, axes = plt.subplots(2, 3, figsize=(17, 10))
+    for ax, (_, draw) in zip(axes.flat, PANELS):
+        draw(ax, rows, long_curves, cherry, cor, cfg)
     fig.suptitle("Where the methods fail (failures marked, not dropped)", fontsize=12)
-    fig.text(0.5, 0.004,
-             "Error panels: above the dotted line, bold x = most rollouts failed (non-finite; "
-             "t = first failure), thin x = could not be fitted (fewer equations than unknowns); "
-             "on a curve, x = some rollouts failed (k/n), o = a rollout left the training box.",
-             ha="center", va="bottom", fontsize=8.5, color="0.25")
+    fig.text(0.5, 0.004, FAILURE_KEY, ha="center", va="bottom", fontsize=8.5, color="0.25")
     fig.tight_layout(rect=(0, 0.02, 1, 1))
     fig.savefig(path, dpi=110)
     plt.close(fig)
+    FONT_SCALE = 1.6
+    try:
+        with plt.rc_context({"font.size": 13, "axes.titlesize": 14, "axes.labelsize": 13,
+                             "xtick.labelsize": 12, "ytick.labelsize": 12}):
+            for name, draw in PANELS:
+                fig, ax = plt.subplots(figsize=(10, 6.2))
+                draw(ax, rows, long_curves, cherry, cor, cfg)
+                # In the overview one legend serves the row; alone, each
+                # panel needs its own.
+                if ax.get_legend() is None and ax.get_legend_handles_labels()[1]:
+                    ax.legend(fontsize=11)
+                fig.tight_layout()
+                fig.savefig(path.with_name(f"{path.stem}_{name}.png"), dpi=100)
+                plt.close(fig)
+    finally:
+        FONT_SCALE = 1.0
 
 
 # ---------------------------------------------------------------- summary
@@ -498,6 +557,11 @@ def pivot(rows, experiment, with_cond=False):
 def main(argv=None):
     args = parse_args(argv)
     args.output.mkdir(parents=True, exist_ok=True)
+    if args.replot:
+        with open(args.output / "stability_plot.pickle", "rb") as handle:
+            plot(*pickle.load(handle), args.output / "stability.png")
+        print(f"# redrew the charts in {args.output}")
+        return 0
     ps, reason = (None, "disabled by --no-sindy") if args.no_sindy else C.sindy_status()
     if args.quick:
         cfg = dict(M=60, n_fresh=1, horizon=20.0, h=0.02, noises=(0.0, 0.2),
@@ -547,6 +611,10 @@ def main(argv=None):
         for key in COLUMNS:
             r.setdefault(key, np.nan if key not in ("note", "status") else "")
     C.write_csv(args.output / "stability.csv", rows, COLUMNS)
+    # The curves behind the long-horizon and Cherry panels are not in the
+    # CSV; keep everything the charts need so that --replot can redraw them.
+    with open(args.output / "stability_plot.pickle", "wb") as handle:
+        pickle.dump((rows, long_curves, cherry, cor, cfg), handle)
     plot(rows, long_curves, cherry, cor, cfg, args.output / "stability.png")
     # Summaries; every number is also in stability.csv.
     for experiment, title, with_cond in (

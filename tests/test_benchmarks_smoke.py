@@ -80,8 +80,10 @@ def test_speed_accuracy_quick(runs):
     assert columns == SPEED_COLUMNS
     assert not any(r["method"].startswith("PySINDy") for r in rows)
     sp = [r for r in rows if r["method"].startswith("SP-")]
-    assert {r["method"] for r in sp} == {"SP-RK4", "SP-AVF"}
-    assert len({r["scene"] for r in sp}) >= 2
+    # Leapfrog only for the separable scene (the FPUT chain).
+    assert {r["method"] for r in sp} == {"SP-RK4", "SP-AVF", "SP-LEAPFROG"}
+    assert {r["scene"] for r in sp if r["method"] == "SP-LEAPFROG"} == {"FPUT chain 4"}
+    assert len({r["scene"] for r in sp}) >= 3
     for r in sp:
         assert _finite(r, "cond", "fit_s", "sim_s", "total_s", "err_T10", "err_T20",
                        "fresh_err_T20", "energy_drift", "model_energy_drift"), r
@@ -103,6 +105,9 @@ def test_stability_quick(runs):
     assert code == 0, stdout[-3000:]
     assert "PySINDy rows skipped" in stdout
     assert (out / "stability.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    # Each panel also alone, for the documentation.
+    for panel in ("noise", "trajectories", "conditioning", "degree", "long_horizon", "cherry"):
+        assert (out / f"stability_{panel}.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n", panel
 
     columns, rows = _read(out / "stability.csv")
     assert columns == STABILITY_COLUMNS
@@ -121,6 +126,35 @@ def test_stability_quick(runs):
             assert _finite(r, "fail_time"), r
     truth = [r for r in rows if r["experiment"] == "cherry_blowup" and r["method"] == "truth"]
     assert len(truth) == 1 and 27 < float(truth[0]["blowup_time"]) < 29
+
+
+@pytest.mark.slow
+def test_speed_front_quick(tmp_path):
+    """``--front``: one row per method and knob, failures kept, chart redrawn by ``--replot``."""
+    out = tmp_path / "front"
+    env = dict(os.environ, MPLBACKEND="Agg")
+    command = [sys.executable, str(BENCHMARKS / "bench_speed_accuracy.py"), "--quick", "--front",
+               "--no-sindy", "--output", str(out)]
+    proc = subprocess.run(command, capture_output=True, text=True, env=env, timeout=240)
+    assert proc.returncode == 0, (proc.stdout + proc.stderr)[-3000:]
+    columns, rows = _read(out / "speed_front.csv")
+    assert columns == ["scene", "method", "knob", "n_params", "fit_s", "sim_s", "total_s",
+                       "err_T20", "fresh_err_T20", "fresh_failed", "n_fresh", "note"]
+    assert {r["method"] for r in rows} == {"SP-RK4", "non-SP-RK4"}
+    for scene in {r["scene"] for r in rows}:
+        for method in ("SP-RK4", "non-SP-RK4"):
+            assert len([r for r in rows if r["scene"] == scene and r["method"] == method]) == 5
+    for r in rows:
+        # A failed rollout is a row with infinite error, drawn at its fit time.
+        assert _finite(r, "fit_s", "total_s"), r
+        assert float(r["err_T20"]) > 0, r
+    png = out / "speed_vs_accuracy_front.png"
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    png.unlink()
+    proc = subprocess.run(command + ["--replot"], capture_output=True, text=True, env=env,
+                          timeout=120)
+    assert proc.returncode == 0, (proc.stdout + proc.stderr)[-3000:]
+    assert png.stat().st_size > 0
 
 
 @pytest.mark.slow
