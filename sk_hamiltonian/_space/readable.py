@@ -14,8 +14,6 @@ sparse in it, so it is where a threshold decides which terms stay.
 :class:`ReadableBasis` holds the change of basis both ways as sparse matrices.
 """
 
-from itertools import product
-
 import numpy as np
 from numpy.polynomial import Legendre, Polynomial
 from scipy import sparse
@@ -44,12 +42,25 @@ def legendre_to_monomials(degree, low, high):
     return M
 
 
-def _angle_rotation(frequency, low, omega):
-    """Readable ``cos, sin (k w x)`` from basis ``cos, sin (k w (x - low))``, and back."""
-    c, s = np.cos(frequency * omega * low), np.sin(frequency * omega * low)
-    # Basis (+k, -k) in readable (+k, -k) by angle addition, rows the basis.
-    forward = np.array([[c, s], [-s, c]])
-    return forward, forward.T
+# Entries of one block of the dense change of basis (float64): 4 million is
+# 32 MB; the blocks' nonzeros are kept, sparse.
+BLOCK_ENTRIES = 4_000_000
+
+
+def _angle_table(top, low, omega):
+    """Readable coefficients of the basis ``cos, sin (k w (x - low))``, by angle addition.
+
+    Rows and columns are the signed frequencies ``-top..top`` shifted by
+    ``top``; row: fitting function, column: readable function.
+    """
+    table = np.zeros((2 * top + 1, 2 * top + 1))
+    table[top, top] = 1.0
+    for k in range(1, top + 1):
+        c, s = np.cos(k * omega * low), np.sin(k * omega * low)
+        plus, minus = top + k, top - k
+        table[plus, plus], table[plus, minus] = c, s
+        table[minus, plus], table[minus, minus] = -s, c
+    return table
 
 
 class ReadableBasis:
@@ -78,67 +89,47 @@ class ReadableBasis:
     def __init__(self, powers, domain, periodic):
         powers = np.asarray(powers, dtype=np.intp)
         periodic = np.asarray(periodic, dtype=bool)
-        where = {tuple(row): j for j, row in enumerate(powers.tolist())}
-        # One pair of 1-D tables per variable: fitting -> readable (forward) and
-        # readable -> fitting (backward), indexed by (basis entry, readable entry).
-        forward, backward = [], []
+        # One dense 1-D table per variable (row: source entry, column: target
+        # entry, both shifted by ``offsets``), fitting -> readable (forward)
+        # and readable -> fitting (backward).
+        forward, backward, offsets = [], [], []
         for i, (low, high) in enumerate(np.asarray(domain, dtype=float)):
             top = int(np.abs(powers[:, i]).max(initial=0))
             if periodic[i]:
-                forward.append(self._angle_table(top, low, 2 * np.pi / (high - low), 0))
-                backward.append(self._angle_table(top, low, 2 * np.pi / (high - low), 1))
+                table = _angle_table(top, low, 2 * np.pi / (high - low))
+                # The 2 x 2 rotations are orthogonal: the inverse is the transpose.
+                forward.append(table)
+                backward.append(table.T)
+                offsets.append(top)
             else:
                 M = legendre_to_monomials(top, low, high)
-                forward.append(_dictionary(M))
-                backward.append(_dictionary(np.linalg.inv(M)))
-        self.to_fitting = self._tensor(powers, where, backward).T.tocsc()
-        self.from_fitting = self._tensor(powers, where, forward).T.tocsr()
-
-    @staticmethod
-    def _angle_table(top, low, omega, which):
-        table = {(0, 0): 1.0}
-        for k in range(1, top + 1):
-            matrix = _angle_rotation(k, low, omega)[which]
-            for a, sa in enumerate((k, -k)):
-                for b, sb in enumerate((k, -k)):
-                    table[(sa, sb)] = matrix[a, b]
-        return _grouped(table)
-
-    @staticmethod
-    def _tensor(powers, where, tables):
-        """Sparse ``T[alpha, beta] = prod_i table_i[alpha_i, beta_i]`` over the index set.
-
-        ``tables[i]`` maps a source entry to ``[(target entry, value)]``; the
-        rows are the sources.
-        """
-        rows, columns, values = [], [], []
-        for j, alpha in enumerate(powers.tolist()):
-            factors = [tables[i][a] for i, a in enumerate(alpha)]
-            for combination in product(*factors):
-                k = where.get(tuple(entry for entry, _ in combination))
-                if k is None:
-                    # The constant, outside a Hamiltonian's index set: a shift.
-                    continue
-                value = np.prod([v for _, v in combination])
-                if value != 0.0:
-                    rows.append(j)
-                    columns.append(k)
-                    values.append(value)
-        n = powers.shape[0]
-        return sparse.coo_array((values, (rows, columns)), shape=(n, n))
+                forward.append(M)
+                backward.append(np.linalg.inv(M))
+                offsets.append(0)
+        shifted = powers + np.asarray(offsets, dtype=np.intp)
+        self.to_fitting = _tensor(shifted, backward).T.tocsc()
+        self.from_fitting = _tensor(shifted, forward).T.tocsr()
 
 
-def _dictionary(matrix):
-    """A dense 1-D change of basis as ``{source: [(target, value)]}``."""
-    return {
-        a: [(int(b), float(matrix[a, b])) for b in np.flatnonzero(matrix[a])]
-        for a in range(matrix.shape[0])
-    }
+def _tensor(entries, tables):
+    """Sparse ``T[j, k] = prod_i tables[i][entries[j, i], entries[k, i]]`` over the index set.
 
-
-def _grouped(table):
-    grouped = {}
-    for (a, b), value in table.items():
-        if value != 0.0:
-            grouped.setdefault(a, []).append((b, float(value)))
-    return grouped
+    Row ``j`` is the source function, column ``k`` the target. Functions
+    outside the index set (the constant of a Hamiltonian's) are left out: the
+    constant part of a function is dropped.
+    """
+    n = entries.shape[0]
+    rows, columns, values = [], [], []
+    size = max(1, BLOCK_ENTRIES // max(1, n))
+    for start in range(0, n, size):
+        block = entries[start : start + size]
+        product = np.ones((block.shape[0], n))
+        for i, table in enumerate(tables):
+            product *= table[block[:, i][:, None], entries[:, i][None, :]]
+        r, c = np.nonzero(product)
+        rows.append(r + start)
+        columns.append(c)
+        values.append(product[r, c])
+    return sparse.coo_array(
+        (np.concatenate(values), (np.concatenate(rows), np.concatenate(columns))), shape=(n, n)
+    )
