@@ -54,6 +54,20 @@ def _factor_text(name, power, periodic, omega):
     return f"{'cos' if power > 0 else 'sin'}({scale}{name})"
 
 
+def _state_names(model, state_names):
+    """The given names checked, else ``feature_names_in_``, else ``p, q`` or ``p1.., q1..``."""
+    n_states = model.n_features_in_
+    if state_names is None:
+        names = getattr(model, "feature_names_in_", None)
+        return list(names) if names is not None else _default_names(n_states)
+    if len(state_names) != n_states:
+        raise ValueError(
+            f"state_names must have one name per state variable ({n_states}); got "
+            f"{len(state_names)}."
+        )
+    return list(state_names)
+
+
 def _default_names(n_states):
     d = n_states // 2
     if d == 1:
@@ -114,15 +128,7 @@ def hamiltonian_terms(model, *, state_names=None, rtol=1e-9):
     [('q^2', 0.5), ('p^2', 0.5)]
     """
     check_is_fitted(model, "coef_")
-    n_states = model.n_features_in_
-    if state_names is None:
-        names = getattr(model, "feature_names_in_", None)
-        state_names = list(names) if names is not None else _default_names(n_states)
-    elif len(state_names) != n_states:
-        raise ValueError(
-            f"state_names must have one name per state variable ({n_states}); got "
-            f"{len(state_names)}."
-        )
+    state_names = _state_names(model, state_names)
     unique = np.asarray(model.powers_)
     # Readable coefficients of every output (one for H~), by the change of basis.
     coef = ReadableBasis(unique, model.domain_, model.periodic_).from_fitting @ np.ravel(
@@ -254,9 +260,7 @@ def to_sympy(model, *, state_names=None, rtol=1e-9):
             'to_sympy needs sympy: pip install "sk_hamiltonian[symbolic]" (or pip install sympy).'
         ) from error
     terms = hamiltonian_terms(model, state_names=state_names, rtol=rtol)
-    if state_names is None:
-        names = getattr(model, "feature_names_in_", None)
-        state_names = list(names) if names is not None else _default_names(model.n_features_in_)
+    state_names = _state_names(model, state_names)
     symbols = sympy.symbols(list(state_names), real=True)
     omega = 2 * np.pi / (model.domain_[:, 1] - model.domain_[:, 0])
     expression = sympy.Integer(0)
