@@ -1,0 +1,103 @@
+"""Compiled kernels (numba), behind the narrow interface of the model space.
+
+numba is optional (``pip install sk_hamiltonian[fast]``). Nothing here
+imports it until a kernel is first asked for, and every caller checks
+:func:`sk_hamiltonian._config.use_numba` first, so without numba the numpy
+path runs exactly as before.
+
+- :func:`contract`: value, gradient and Hessian of ``sum_j coef[j] phi_j``
+  at many states (what :class:`~sk_hamiltonian._space.ModelSpace`'s
+  ``value_dot``, ``gradient_dot`` and ``hessian_dot`` return);
+- :mod:`.simulate`: whole fixed-step integrations as compiled loops;
+- :mod:`.threads`: BLAS threads chosen by problem size.
+"""
+
+import numpy as np
+
+_NUMBA = None
+# Rows of a batch from which the evaluation runs on every core (below, the
+# start of the parallel region costs more than it saves).
+PARALLEL_ROWS = 256
+
+
+def numba_available():
+    """Whether numba can be imported (checked once per process)."""
+    global _NUMBA
+    if _NUMBA is None:
+        try:
+            import numba  # noqa: F401
+        except Exception:  # ImportError, or a numba broken against this numpy
+            _NUMBA = False
+        else:
+            _NUMBA = True
+    return _NUMBA
+
+
+def bound_tree(space, coef):
+    """The tree of ``space`` and ``coef`` in its leaf order, cached on the space.
+
+    The coefficients are cached by identity and a fingerprint of their
+    values, as :meth:`ModelSpace._bound` does, so that changing ``coef`` in
+    place is seen.
+    """
+    from .tree import tree_arrays
+
+    cache = space.__dict__.get("_kernel_tree")
+    if cache is None:
+        cache = space.__dict__["_kernel_tree"] = [tree_arrays(space), None]
+    (tree, order), binding = cache
+    fingerprint = (space._probe @ coef).tolist()
+    if binding is not None and binding[0] is coef and binding[1] == fingerprint:
+        return tree, binding[2]
+    coef2 = np.asarray(coef, dtype=float).reshape(space.n_terms, -1)
+    leaf_start, leaf_column = tree[4], tree[5]
+    n_prefixes = leaf_start.size - 1
+    leaf_parent = np.repeat(np.arange(n_prefixes), np.diff(leaf_start))
+    # Dense (width, K, n_prefixes): the leaves are then a few vectorized
+    # passes over the prefixes, with no branch per prefix.
+    bound = np.zeros((tree[10], coef2.shape[1], n_prefixes))
+    bound[leaf_column, :, leaf_parent] = coef2[order]
+    cache[1] = (coef, fingerprint, bound)
+    return tree, bound
+
+
+def contract(space, X, coef, order):
+    """Value, gradient and Hessian of ``sum_j coef[j] phi_j`` at the rows of ``X``.
+
+    Parameters
+    ----------
+    space : ModelSpace
+        The basis.
+    X : ndarray of shape (n_samples, n_states)
+        States.
+    coef : ndarray of shape (n_terms,) or (n_terms, K)
+        Coefficients.
+    order : {0, 1, 2}
+        Highest derivative order.
+
+    Returns
+    -------
+    value : ndarray of shape (n_samples, K)
+    grad : ndarray of shape (n_samples, n_states, K) or None (order 0)
+    hess : ndarray of shape (n_samples, n_states, n_states, K) or None (order < 2)
+    """
+    from . import _jit
+
+    tree, bound = bound_tree(space, coef)
+    X = np.ascontiguousarray(X, dtype=float)
+    n, m = X.shape
+    K = bound.shape[1]
+    value = np.empty((n, K))
+    grad = np.empty((n, m, K)) if order >= 1 else np.empty((0, m, K))
+    hess = np.empty((n, m, m, K)) if order >= 2 else np.empty((0, m, m, K))
+    if n >= PARALLEL_ROWS:
+        _jit.evaluate_parallel(X, tree, bound, order, value, grad, hess, 4 * _n_threads())
+    else:
+        _jit.evaluate(X, tree, bound, order, value, grad, hess)
+    return value, (grad if order >= 1 else None), (hess if order >= 2 else None)
+
+
+def _n_threads():
+    import numba
+
+    return numba.get_num_threads()
