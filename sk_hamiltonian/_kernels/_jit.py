@@ -176,9 +176,14 @@ def evaluate_parallel(X, tree, coef, order, value, grad, hess, n_chunks):
     """:func:`evaluate` over ``n_chunks`` chunks of rows in parallel."""
     n, m = X.shape
     size = (n + n_chunks - 1) // n_chunks
+    T, cur, nxt = _work(tree, coef.shape[1], m)
+    # One work array per chunk, allocated here: numba may hoist an
+    # allocation out of a parallel loop, which would share it between threads.
+    Ts = np.zeros((n_chunks,) + T.shape)
+    curs = np.zeros((n_chunks,) + cur.shape)
+    nxts = np.zeros((n_chunks,) + nxt.shape)
     for chunk in prange(n_chunks):
-        T, cur, nxt = _work(tree, coef.shape[1], m)
         for s in range(chunk * size, min(n, (chunk + 1) * size)):
-            fill_tables(X[s], tree[0], tree[1], tree[2], tree[3], order, T)
-            root = contract_tables(T, tree, coef, order, cur, nxt)
+            fill_tables(X[s], tree[0], tree[1], tree[2], tree[3], order, Ts[chunk])
+            root = contract_tables(Ts[chunk], tree, coef, order, curs[chunk], nxts[chunk])
             _store(root, s, order, m, value, grad, hess)

@@ -1,0 +1,121 @@
+"""The compiled (numba) kernels against the numpy path, and the kernels switch."""
+
+import numpy as np
+import pytest
+
+import sk_hamiltonian
+from sk_hamiltonian import config_context, get_config, set_config
+from sk_hamiltonian._kernels import numba_available
+from sk_hamiltonian._space import ModelSpace, index_set
+
+needs_numba = pytest.mark.skipif(
+    not numba_available(), reason="numba is not installed (pip install sk_hamiltonian[fast])"
+)
+
+# (n_states, degree, periodic, constraints): every family and index-set kind.
+SPACES = [
+    (2, 6, [False, False], {}),
+    (4, 5, [False] * 4, {}),
+    (4, 4, [False, False, True, True], {}),
+    (2, 3, [True, True], {}),
+    (4, 6, [False, False, True, True], {"momentum_degree": 2}),
+    (6, 3, [False] * 6, {"separable": True, "max_interaction": 2}),
+    (1, 7, [False], {}),
+    (3, 4, [True, False, True], {"include_constant": True}),
+]
+
+
+def _space(n_states, degree, periodic, constraints):
+    domain = np.column_stack([-1.5 * np.ones(n_states), np.linspace(1.0, 2.0, n_states)])
+    powers = index_set(n_states, degree, periodic=np.array(periodic), **constraints)
+    return ModelSpace(domain, powers, np.array(periodic))
+
+
+def _states(space, n, seed=0):
+    rng = np.random.default_rng(seed)
+    low, high = space.domain.T
+    # Slightly beyond the box too: the compiled tables must extrapolate as numpy's do.
+    return rng.uniform(low - 0.1 * (high - low), high + 0.1 * (high - low), size=(n, space.n_states))
+
+
+def test_config_default_and_choices():
+    assert get_config() == {"kernels": "auto"}
+    with pytest.raises(ValueError, match="kernels must be one of"):
+        set_config(kernels="fortran")
+    with config_context(kernels="numpy"):
+        assert get_config()["kernels"] == "numpy"
+        with pytest.raises(ValueError, match="kernels must be one of"):
+            with config_context(kernels="cuda"):
+                pass  # pragma: no cover
+        assert get_config()["kernels"] == "numpy"
+    assert get_config()["kernels"] == "auto"
+    assert sk_hamiltonian.set_config is set_config
+
+
+def test_numba_choice_without_numba_says_how_to_install(monkeypatch):
+    monkeypatch.setattr(sk_hamiltonian._kernels, "_NUMBA", False)
+    with pytest.raises(ImportError, match=r"sk_hamiltonian\[fast\]"):
+        set_config(kernels="numba")
+    assert get_config()["kernels"] == "auto"
+    # "auto" then quietly means numpy.
+    from sk_hamiltonian._config import use_numba
+
+    assert not use_numba()
+
+
+def test_config_context_restores_on_error():
+    with pytest.raises(RuntimeError):
+        with config_context(kernels="numpy"):
+            raise RuntimeError("boom")
+    assert get_config()["kernels"] == "auto"
+
+
+@needs_numba
+@pytest.mark.parametrize("spec", SPACES, ids=lambda s: f"m{s[0]}n{s[1]}{s[3]}{sum(s[2])}p")
+@pytest.mark.parametrize("n_samples", [1, 5, 300])
+def test_contractions_agree(spec, n_samples):
+    space = _space(*spec)
+    X = _states(space, n_samples)
+    rng = np.random.default_rng(1)
+    coef = rng.standard_normal(space.n_terms)
+    coef2 = rng.standard_normal((space.n_terms, 3))
+    results = {}
+    for kernels in ("numpy", "numba"):
+        with config_context(kernels=kernels):
+            results[kernels] = [
+                space.value_dot(X, coef), space.gradient_dot(X, coef), space.hessian_dot(X, coef),
+                space.value_dot(X, coef2), space.gradient_dot(X, coef2),
+            ]
+    for a, b in zip(results["numpy"], results["numba"]):
+        assert a.shape == b.shape
+        scale = np.abs(a).max()
+        np.testing.assert_allclose(b, a, rtol=0, atol=1e-12 * scale)
+
+
+@needs_numba
+def test_coefficients_changed_in_place_are_seen():
+    space = _space(*SPACES[1])
+    X = _states(space, 3)
+    coef = np.ones(space.n_terms)
+    with config_context(kernels="numba"):
+        first = space.gradient_dot(X, coef)
+        coef[5] = -4.0
+        second = space.gradient_dot(X, coef)
+    with config_context(kernels="numpy"):
+        expected = space.gradient_dot(X, coef)
+    assert not np.allclose(first, second)
+    np.testing.assert_allclose(second, expected, rtol=1e-12, atol=1e-12)
+
+
+def test_one_variable_results_outlive_the_next_call():
+    # The numpy contraction of a 1-D space once returned a view of its
+    # workspace, which the next call overwrote.
+    space = _space(*SPACES[6])
+    X = _states(space, 300)
+    coef = np.random.default_rng(1).standard_normal(space.n_terms)
+    with config_context(kernels="numpy"):
+        first = space.value_dot(X, coef)
+        kept = first.copy()
+        space.value_dot(X, 2 * coef)
+    np.testing.assert_array_equal(first, kept)
+    np.testing.assert_allclose(first, space.values(X) @ coef, rtol=1e-12, atol=1e-12)
