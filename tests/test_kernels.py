@@ -119,3 +119,88 @@ def test_one_variable_results_outlive_the_next_call():
         space.value_dot(X, 2 * coef)
     np.testing.assert_array_equal(first, kept)
     np.testing.assert_allclose(first, space.values(X) @ coef, rtol=1e-12, atol=1e-12)
+
+
+def _fitted(kind, periodic=False, damping=False, separable=False):
+    from sk_hamiltonian import HamiltonianRegressor, VectorFieldRegressor
+    from sk_hamiltonian.datasets import load_system
+
+    system = load_system("henon_heiles")
+    rng = np.random.default_rng(3)
+    X = rng.uniform(-0.5, 0.5, size=(400, 4))
+    dX = system.vector_field(X)
+    if damping:
+        dX[:, :2] -= 0.05 * dX[:, 2:]
+    domain = np.array([[-0.5, 0.5]] * 4)
+    if kind == "value":
+        return VectorFieldRegressor(degree=4, domain=domain).fit(X, dX)
+    params = dict(degree=5, domain=domain, damping=damping, separable=separable)
+    if periodic:
+        params.update(periodic=[False, False, True, True], domain=np.array([[-0.5, 0.5]] * 2 + [[-np.pi, np.pi]] * 2))
+    return HamiltonianRegressor(**params).fit(X, dX)
+
+
+MODELS = {
+    "hamiltonian": dict(kind="gradient"),
+    "damped": dict(kind="gradient", damping=True),
+    "separable": dict(kind="gradient", separable=True),
+    "periodic": dict(kind="gradient", periodic=True),
+    "vector_field": dict(kind="value"),
+}
+
+
+@needs_numba
+@pytest.mark.filterwarnings("ignore::sk_hamiltonian.DomainWarning")
+@pytest.mark.parametrize("name", list(MODELS))
+@pytest.mark.parametrize("method", ["rk4", "avf", "leapfrog", "yoshida4"])
+def test_simulations_agree(name, method):
+    model = _fitted(**MODELS[name])
+    if method in ("leapfrog", "yoshida4") and name != "separable":
+        with pytest.raises(ValueError, match="separable|damping"):
+            model.simulate([0.1, 0.0, 0.2, -0.1], np.linspace(0, 1, 3), method=method)
+        return
+    x0 = np.array([[0.1, 0.0, 0.2, -0.1], [0.0, 0.2, -0.1, 0.3], [0.05, -0.1, 0.0, 0.1]])
+    t = np.linspace(0, 3.0, 31)
+    paths = {}
+    for kernels in ("numpy", "numba"):
+        with config_context(kernels=kernels):
+            paths[kernels] = model.simulate(x0, t, method=method, max_step=0.05)
+    assert paths["numba"].shape == paths["numpy"].shape
+    np.testing.assert_allclose(paths["numba"], paths["numpy"], rtol=0, atol=1e-11)
+
+
+@needs_numba
+@pytest.mark.parametrize("method", ["rk4", "avf"])
+def test_compiled_failure_matches_numpy(method):
+    model = _fitted("gradient")
+    x0 = np.array([[0.1, 0.0, 0.2, -0.1], [40.0, 0.0, 0.0, 0.0]])
+    t = np.linspace(0, 50.0, 11)
+    results = {}
+    for kernels in ("numpy", "numba"):
+        with config_context(kernels=kernels):
+            with pytest.raises(sk_hamiltonian.SimulationError) as info:
+                model.simulate(x0, t, method=method, max_step=0.1)
+            with pytest.warns(sk_hamiltonian.DomainWarning):
+                paths = model.simulate(x0, t, method=method, max_step=0.1, on_failure="nan")
+            results[kernels] = (info.value.failed_at, paths)
+    np.testing.assert_array_equal(results["numba"][0], results["numpy"][0])
+    assert results["numba"][0][0] == t.size and results["numba"][0][1] < t.size
+    # NaN where the trajectory failed, the same states elsewhere.
+    np.testing.assert_allclose(results["numba"][1], results["numpy"][1], rtol=0, atol=1e-9)
+
+
+@needs_numba
+def test_compiled_simulation_does_not_step_in_python(monkeypatch):
+    from sk_hamiltonian._integrate import FixedStepIntegrator
+
+    model = _fitted("gradient")
+
+    def forbidden(self, y, h):
+        raise AssertionError("stepped in Python")
+
+    monkeypatch.setattr(FixedStepIntegrator, "step", forbidden)
+    with config_context(kernels="numba"):
+        path = model.simulate([0.1, 0.0, 0.2, -0.1], np.linspace(0, 1, 11), method="rk4")
+    assert np.isfinite(path).all()
+    with config_context(kernels="numpy"), pytest.raises(AssertionError, match="Python"):
+        model.simulate([0.1, 0.0, 0.2, -0.1], np.linspace(0, 1, 11), method="rk4")
