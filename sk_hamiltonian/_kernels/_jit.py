@@ -70,12 +70,13 @@ def fill_tables(x, family, degree, slope, offset, order, T):
 
 
 @njit(cache=True, nogil=True)
-def contract_tables(T, tree, C, order, cur, nxt):
+def contract_tables(T, tree, C, order, cur, nxt, pad):
     """Contract the bound coefficients ``C`` with the tables ``T``; returns the root's results.
 
     ``C`` is (width, K, n_prefixes): ``C[c, k, p]`` the coefficient for target
     ``k`` of the function with prefix ``p`` and last column ``c``.
-    ``cur`` and ``nxt`` are work arrays of shape (P, K, max nodes); the result
+    ``cur`` and ``nxt`` are work arrays of shape (P, K, max nodes) and
+    ``pad`` the levels' padded arrays (zero where no node); the result
     is ``out[q, k]`` (pattern, target) of the root, a view of one of them.
     Every inner loop runs over nodes (contiguous, independent sums), which
     the compiler vectorizes; loops over each node's children would end in a
@@ -98,41 +99,60 @@ def contract_tables(T, tree, C, order, cur, nxt):
                     for p in range(n_prefixes):
                         out[p] += coef[p] * t
     # Level k (prefixes of length k, k = m - 1 .. 1) sums variable k - 1.
+    # Each carried row of nodes is scattered into the level's padded
+    # (column, parent) array, whose other entries stay zero for good; the
+    # sum over children is then a dense product over the parents, which the
+    # compiler vectorizes (a loop adding children into parents one by one
+    # waits on the previous addition to the same parent).
+    level_pos, pads = tree[11], pad
+    offset = 0
     for L in range(m - 1):
         k = m - 1 - L
         v = k - 1
         n_parents = node_counts[L + 1]
         first, stop = level_start[L], level_start[L + 1]
-        parent = level_parent[first:stop]
-        key = level_key[first:stop]
+        pos = level_pos[first:stop]
+        level_pad = pads[offset : offset + width * n_parents]
+        offset += width * n_parents
         for kk in range(K):
-            _sum_into(cur[0, kk], nxt[0, kk], parent, key, T[v, 0], n_parents, True)
+            _scatter(cur[0, kk], level_pad, pos)
+            _dense_sum(level_pad, T[v, 0], nxt[0, kk], n_parents)
+            if order >= 1:
+                _dense_sum(level_pad, T[v, 1], nxt[1 + v, kk], n_parents)
+            if order >= 2:
+                _dense_sum(level_pad, T[v, 2], nxt[1 + m + v * m + v, kk], n_parents)
             if order >= 1:
                 for j in range(k, m):
-                    _sum_into(cur[1 + j, kk], nxt[1 + j, kk], parent, key, T[v, 0], n_parents, True)
-                _sum_into(cur[0, kk], nxt[1 + v, kk], parent, key, T[v, 1], n_parents, True)
+                    _scatter(cur[1 + j, kk], level_pad, pos)
+                    _dense_sum(level_pad, T[v, 0], nxt[1 + j, kk], n_parents)
+                    if order >= 2:
+                        _dense_sum(level_pad, T[v, 1], nxt[1 + m + v * m + j, kk], n_parents)
             if order >= 2:
                 for i in range(k, m):
                     for j in range(i, m):
                         q = 1 + m + i * m + j
-                        _sum_into(cur[q, kk], nxt[q, kk], parent, key, T[v, 0], n_parents, True)
-                for j in range(k, m):
-                    q = 1 + m + v * m + j
-                    _sum_into(cur[1 + j, kk], nxt[q, kk], parent, key, T[v, 1], n_parents, True)
-                q = 1 + m + v * m + v
-                _sum_into(cur[0, kk], nxt[q, kk], parent, key, T[v, 2], n_parents, True)
+                        _scatter(cur[q, kk], level_pad, pos)
+                        _dense_sum(level_pad, T[v, 0], nxt[q, kk], n_parents)
         cur, nxt = nxt, cur
     return cur[:, :, 0]
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _sum_into(child, out, parent, key, table, n_parents, reset):
-    """``out[parent[n]] += child[n] * table[key[n]]`` over the nodes ``n`` (after zeroing)."""
-    if reset:
-        for p in range(n_parents):
-            out[p] = 0.0
-    for n in range(parent.shape[0]):
-        out[parent[n]] += child[n] * table[key[n]]
+def _scatter(row, pad, pos):
+    for n in range(pos.shape[0]):
+        pad[pos[n]] = row[n]
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _dense_sum(pad, table, out, n_parents):
+    """``out[p] = sum_c pad[c * n_parents + p] * table[c]``."""
+    for p in range(n_parents):
+        out[p] = 0.0
+    for c in range(table.shape[0]):
+        t = table[c]
+        if t != 0.0:
+            for p in range(n_parents):
+                out[p] += pad[c * n_parents + p] * t
 
 
 @njit(cache=True, nogil=True)
@@ -142,7 +162,11 @@ def _work(tree, K, m):
     for count in tree[9]:
         size = max(size, count)
     P = 1 + m + m * m
-    return np.zeros((m, 3, width)), np.zeros((P, K, size)), np.zeros((P, K, size))
+    n_pad = 0
+    for L in range(tree[9].shape[0] - 1):
+        n_pad += width * tree[9][L + 1]
+    return (np.zeros((m, 3, width)), np.zeros((P, K, size)), np.zeros((P, K, size)),
+            np.zeros(n_pad))
 
 
 @njit(cache=True, nogil=True)
@@ -163,27 +187,26 @@ def _store(root, s, order, m, value, grad, hess):
 @njit(cache=True, nogil=True)
 def evaluate(X, tree, coef, order, value, grad, hess):
     """Value (n, K), gradient (n, m, K) and Hessian (n, m, m, K) of ``coef`` at the rows of ``X``."""
-    n, m = X.shape
-    T, cur, nxt = _work(tree, coef.shape[1], m)
-    for s in range(n):
+    _evaluate_rows(X, tree, coef, order, value, grad, hess, 0, X.shape[0])
+
+
+@njit(cache=True, nogil=True)
+def _evaluate_rows(X, tree, coef, order, value, grad, hess, first, stop):
+    m = X.shape[1]
+    # Allocated here, in a function of its own: numba may hoist an
+    # allocation out of a parallel loop's body, sharing it between threads.
+    T, cur, nxt, pad = _work(tree, coef.shape[1], m)
+    for s in range(first, stop):
         fill_tables(X[s], tree[0], tree[1], tree[2], tree[3], order, T)
-        root = contract_tables(T, tree, coef, order, cur, nxt)
+        root = contract_tables(T, tree, coef, order, cur, nxt, pad)
         _store(root, s, order, m, value, grad, hess)
 
 
 @njit(cache=True, nogil=True, parallel=True)
 def evaluate_parallel(X, tree, coef, order, value, grad, hess, n_chunks):
     """:func:`evaluate` over ``n_chunks`` chunks of rows in parallel."""
-    n, m = X.shape
+    n = X.shape[0]
     size = (n + n_chunks - 1) // n_chunks
-    T, cur, nxt = _work(tree, coef.shape[1], m)
-    # One work array per chunk, allocated here: numba may hoist an
-    # allocation out of a parallel loop, which would share it between threads.
-    Ts = np.zeros((n_chunks,) + T.shape)
-    curs = np.zeros((n_chunks,) + cur.shape)
-    nxts = np.zeros((n_chunks,) + nxt.shape)
     for chunk in prange(n_chunks):
-        for s in range(chunk * size, min(n, (chunk + 1) * size)):
-            fill_tables(X[s], tree[0], tree[1], tree[2], tree[3], order, Ts[chunk])
-            root = contract_tables(Ts[chunk], tree, coef, order, curs[chunk], nxts[chunk])
-            _store(root, s, order, m, value, grad, hess)
+        _evaluate_rows(X, tree, coef, order, value, grad, hess, chunk * size,
+                       min(n, (chunk + 1) * size))

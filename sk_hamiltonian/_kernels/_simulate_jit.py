@@ -24,28 +24,28 @@ from ._jit import _work, contract_tables, fill_tables
 
 
 @njit(cache=True, nogil=True)
-def _field(kind, tree, C, gamma, x, T, cur, nxt, f):
+def _field(kind, tree, C, gamma, x, T, cur, nxt, pad, f):
     m = x.shape[0]
     if kind == 0:
         fill_tables(x, tree[0], tree[1], tree[2], tree[3], 1, T)
-        root = contract_tables(T, tree, C, 1, cur, nxt)
+        root = contract_tables(T, tree, C, 1, cur, nxt, pad)
         d = m // 2
         for i in range(d):
             f[i] = -root[1 + d + i, 0] - gamma[i] * root[1 + i, 0]
             f[d + i] = root[1 + i, 0]
     else:
         fill_tables(x, tree[0], tree[1], tree[2], tree[3], 0, T)
-        root = contract_tables(T, tree, C, 0, cur, nxt)
+        root = contract_tables(T, tree, C, 0, cur, nxt, pad)
         for c in range(m):
             f[c] = root[0, c]
 
 
 @njit(cache=True, nogil=True)
-def _jacobian(kind, tree, C, gamma, x, T, cur, nxt, J):
+def _jacobian(kind, tree, C, gamma, x, T, cur, nxt, pad, J):
     m = x.shape[0]
     if kind == 0:
         fill_tables(x, tree[0], tree[1], tree[2], tree[3], 2, T)
-        root = contract_tables(T, tree, C, 2, cur, nxt)
+        root = contract_tables(T, tree, C, 2, cur, nxt, pad)
         d = m // 2
         for i in range(d):
             for j in range(m):
@@ -57,16 +57,16 @@ def _jacobian(kind, tree, C, gamma, x, T, cur, nxt, J):
                 J[d + i, j] = H_ij
     else:
         fill_tables(x, tree[0], tree[1], tree[2], tree[3], 1, T)
-        root = contract_tables(T, tree, C, 1, cur, nxt)
+        root = contract_tables(T, tree, C, 1, cur, nxt, pad)
         for c in range(m):
             for i in range(m):
                 J[c, i] = root[1 + i, c]
 
 
 @njit(cache=True, nogil=True)
-def _gradient(tree, C, x, T, cur, nxt, g):
+def _gradient(tree, C, x, T, cur, nxt, pad, g):
     fill_tables(x, tree[0], tree[1], tree[2], tree[3], 1, T)
-    root = contract_tables(T, tree, C, 1, cur, nxt)
+    root = contract_tables(T, tree, C, 1, cur, nxt, pad)
     for i in range(x.shape[0]):
         g[i] = root[1 + i, 0]
 
@@ -104,32 +104,32 @@ def _invert(A, out):
 
 
 @njit(cache=True, nogil=True)
-def _rk4(kind, tree, C, gamma, y, h, T, cur, nxt, k1, k2, k3, k4, tmp):
+def _rk4(kind, tree, C, gamma, y, h, T, cur, nxt, pad, k1, k2, k3, k4, tmp):
     m = y.shape[0]
-    _field(kind, tree, C, gamma, y, T, cur, nxt, k1)
+    _field(kind, tree, C, gamma, y, T, cur, nxt, pad, k1)
     for i in range(m):
         tmp[i] = y[i] + (0.5 * h) * k1[i]
-    _field(kind, tree, C, gamma, tmp, T, cur, nxt, k2)
+    _field(kind, tree, C, gamma, tmp, T, cur, nxt, pad, k2)
     for i in range(m):
         tmp[i] = y[i] + (0.5 * h) * k2[i]
-    _field(kind, tree, C, gamma, tmp, T, cur, nxt, k3)
+    _field(kind, tree, C, gamma, tmp, T, cur, nxt, pad, k3)
     for i in range(m):
         tmp[i] = y[i] + h * k3[i]
-    _field(kind, tree, C, gamma, tmp, T, cur, nxt, k4)
+    _field(kind, tree, C, gamma, tmp, T, cur, nxt, pad, k4)
     for i in range(m):
         y[i] = y[i] + (h / 6.0) * (k1[i] + 2.0 * (k2[i] + k3[i]) + k4[i])
 
 
 @njit(cache=True, nogil=True)
-def _avf(kind, tree, C, gamma, y, h, nodes, weights, rtol, max_iter, T, cur, nxt, J, M, f, y1, avg, point):
+def _avf(kind, tree, C, gamma, y, h, nodes, weights, rtol, max_iter, T, cur, nxt, pad, J, M, f, y1, avg, point):
     """One AVF step of ``y`` in place; NaN where Newton does not converge (see AveragedVectorField)."""
     m = y.shape[0]
-    _jacobian(kind, tree, C, gamma, y, T, cur, nxt, J)
+    _jacobian(kind, tree, C, gamma, y, T, cur, nxt, pad, J)
     for i in range(m):
         for j in range(m):
             J[i, j] = (1.0 if i == j else 0.0) - (0.5 * h) * J[i, j]
     _invert(J, M)
-    _field(kind, tree, C, gamma, y, T, cur, nxt, f)
+    _field(kind, tree, C, gamma, y, T, cur, nxt, pad, f)
     scale = 1.0
     for i in range(m):
         s = 0.0
@@ -146,7 +146,7 @@ def _avf(kind, tree, C, gamma, y, h, nodes, weights, rtol, max_iter, T, cur, nxt
         for q in range(nodes.shape[0]):
             for i in range(m):
                 point[i] = y[i] + nodes[q] * (y1[i] - y[i])
-            _field(kind, tree, C, gamma, point, T, cur, nxt, f)
+            _field(kind, tree, C, gamma, point, T, cur, nxt, pad, f)
             for i in range(m):
                 avg[i] += weights[q] * f[i]
         for i in range(m):
@@ -172,18 +172,18 @@ def _avf(kind, tree, C, gamma, y, h, nodes, weights, rtol, max_iter, T, cur, nxt
 
 
 @njit(cache=True, nogil=True)
-def _leapfrog(tree, C, tree2, C2, y, h, lf_weights, T, cur, nxt, T2, cur2, nxt2, g):
+def _leapfrog(tree, C, tree2, C2, y, h, lf_weights, T, cur, nxt, pad, T2, cur2, nxt2, pad2, g):
     d = y.shape[0] // 2
     p = y[:d]
     q = y[d:]
     for w in lf_weights:
-        _gradient(tree, C, q, T, cur, nxt, g)
+        _gradient(tree, C, q, T, cur, nxt, pad, g)
         for i in range(d):
             p[i] -= (0.5 * w * h) * g[i]
-        _gradient(tree2, C2, p, T2, cur2, nxt2, g)
+        _gradient(tree2, C2, p, T2, cur2, nxt2, pad2, g)
         for i in range(d):
             q[i] += (w * h) * g[i]
-        _gradient(tree, C, q, T, cur, nxt, g)
+        _gradient(tree, C, q, T, cur, nxt, pad, g)
         for i in range(d):
             p[i] -= (0.5 * w * h) * g[i]
 
@@ -202,8 +202,8 @@ def _run(method, kind, tree, C, tree2, C2, gamma, lf_weights, nodes, weights, rt
     m = y0.shape[1]
     n_times = out.shape[0]
     K = C.shape[1]
-    T, cur, nxt = _work(tree, K, tree[0].shape[0])
-    T2, cur2, nxt2 = _work(tree2, C2.shape[1], tree2[0].shape[0])
+    T, cur, nxt, pad = _work(tree, K, tree[0].shape[0])
+    T2, cur2, nxt2, pad2 = _work(tree2, C2.shape[1], tree2[0].shape[0])
     J = np.empty((m, m))
     M = np.empty((m, m))
     k1 = np.empty(m)
@@ -223,13 +223,13 @@ def _run(method, kind, tree, C, tree2, C2, gamma, lf_weights, nodes, weights, rt
             y[:] = last
             for _ in range(n_sub[k]):
                 if method == 0:
-                    _rk4(kind, tree, C, gamma, y, h[k], T, cur, nxt, k1, k2, k3, k4, tmp)
+                    _rk4(kind, tree, C, gamma, y, h[k], T, cur, nxt, pad, k1, k2, k3, k4, tmp)
                 elif method == 1:
                     _avf(kind, tree, C, gamma, y, h[k], nodes, weights, rtol, max_iter,
-                         T, cur, nxt, J, M, k1, k2, k3, k4)
+                         T, cur, nxt, pad, J, M, k1, k2, k3, k4)
                 else:
-                    _leapfrog(tree, C, tree2, C2, y, h[k], lf_weights, T, cur, nxt,
-                              T2, cur2, nxt2, k1)
+                    _leapfrog(tree, C, tree2, C2, y, h[k], lf_weights, T, cur, nxt, pad,
+                              T2, cur2, nxt2, pad2, k1)
             finite = True
             for i in range(m):
                 if not math.isfinite(y[i]):

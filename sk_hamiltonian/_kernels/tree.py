@@ -25,7 +25,7 @@ def tree_arrays(space):
     -------
     tree : tuple
         ``(family, degree, slope, offset, leaf_start, leaf_column,
-        level_start, level_parent, level_key, node_counts, width)``.
+        level_start, level_parent, level_key, node_counts, width, level_pos)``.
     order : ndarray of shape (n_terms,)
         The terms in leaf order: bound coefficients are ``coef[order]``.
     """
@@ -65,5 +65,8 @@ def tree_arrays(space):
         family, degree, slope, offset, leaf_start, leaf_column,
         np.array(starts, dtype=INDEX), cat(parents).astype(INDEX), cat(keys).astype(INDEX),
         np.array(counts, dtype=INDEX), int(space.width),
+        # Each node's slot in its level's padded (column, parent) array.
+        (cat(keys) * np.repeat(counts[1:], [p.size for p in parents]) + cat(parents)).astype(INDEX)
+        if parents else np.zeros(0, dtype=INDEX),
     )
     return tree, order
