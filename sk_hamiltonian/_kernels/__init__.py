@@ -12,9 +12,12 @@ path runs exactly as before.
 - :mod:`.threads`: BLAS threads chosen by problem size.
 """
 
+import threading
+
 import numpy as np
 
 _NUMBA = None
+_local = threading.local()
 # Rows of a batch from which the evaluation runs on every core (below, the
 # start of the parallel region costs more than it saves).
 PARALLEL_ROWS = 256
@@ -33,6 +36,19 @@ def numba_available():
     return _NUMBA
 
 
+_JIT = None
+
+
+def _compiled():
+    """The module of compiled kernels (imported, and numba with it, on first use)."""
+    global _JIT
+    if _JIT is None:
+        from . import _jit
+
+        _JIT = _jit
+    return _JIT
+
+
 def bound_tree(space, coef):
     """The tree of ``space`` and ``coef`` in its leaf order, cached on the space.
 
@@ -40,10 +56,10 @@ def bound_tree(space, coef):
     values, as :meth:`ModelSpace._bound` does, so that changing ``coef`` in
     place is seen.
     """
-    from .tree import tree_arrays
-
     cache = space.__dict__.get("_kernel_tree")
     if cache is None:
+        from .tree import tree_arrays
+
         cache = space.__dict__["_kernel_tree"] = [tree_arrays(space), None]
     (tree, order), binding = cache
     fingerprint = (space._probe @ coef).tolist()
@@ -81,8 +97,7 @@ def contract(space, X, coef, order):
     grad : ndarray of shape (n_samples, n_states, K) or None (order 0)
     hess : ndarray of shape (n_samples, n_states, n_states, K) or None (order < 2)
     """
-    from . import _jit
-
+    _jit = _compiled()
     tree, bound = bound_tree(space, coef)
     X = np.ascontiguousarray(X, dtype=float)
     n, m = X.shape
@@ -93,8 +108,22 @@ def contract(space, X, coef, order):
     if n >= PARALLEL_ROWS:
         _jit.evaluate_parallel(X, tree, bound, order, value, grad, hess, 4 * _n_threads())
     else:
-        _jit.evaluate(X, tree, bound, order, value, grad, hess)
+        _jit.evaluate(X, tree, bound, order, value, grad, hess, *_work(tree, K, m))
     return value, (grad if order >= 1 else None), (hess if order >= 2 else None)
+
+
+def _work(tree, K, m):
+    """This thread's work arrays for ``tree`` and ``K`` targets (kept between calls)."""
+    cache = getattr(_local, "work", None)
+    if cache is None:
+        cache = _local.work = {}
+    key = (id(tree), K)
+    entry = cache.get(key)
+    if entry is None or entry[0] is not tree:
+        if len(cache) >= 16:
+            cache.clear()
+        entry = cache[key] = (tree, _compiled().work(tree, K, m))
+    return entry[1]
 
 
 def _n_threads():

@@ -165,7 +165,9 @@ def _work(tree, K, m):
     n_pad = 0
     for L in range(tree[9].shape[0] - 1):
         n_pad += width * tree[9][L + 1]
-    return (np.zeros((m, 3, width)), np.zeros((P, K, size)), np.zeros((P, K, size)),
+    # The tables and the padded arrays must start at zero (entries no state
+    # writes are read as zeros); the node rows are written before being read.
+    return (np.zeros((m, 3, width)), np.empty((P, K, size)), np.empty((P, K, size)),
             np.zeros(n_pad))
 
 
@@ -185,9 +187,23 @@ def _store(root, s, order, m, value, grad, hess):
 
 
 @njit(cache=True, nogil=True)
-def evaluate(X, tree, coef, order, value, grad, hess):
-    """Value (n, K), gradient (n, m, K) and Hessian (n, m, m, K) of ``coef`` at the rows of ``X``."""
-    _evaluate_rows(X, tree, coef, order, value, grad, hess, 0, X.shape[0])
+def evaluate(X, tree, coef, order, value, grad, hess, T, cur, nxt, pad):
+    """Value (n, K), gradient (n, m, K) and Hessian (n, m, m, K) of ``coef`` at the rows of ``X``.
+
+    With the work arrays of :func:`work` (kept between calls: allocating
+    them costs more than contracting one state).
+    """
+    m = X.shape[1]
+    for s in range(X.shape[0]):
+        fill_tables(X[s], tree[0], tree[1], tree[2], tree[3], order, T)
+        root = contract_tables(T, tree, coef, order, cur, nxt, pad)
+        _store(root, s, order, m, value, grad, hess)
+
+
+@njit(cache=True, nogil=True)
+def work(tree, K, m):
+    """The work arrays of :func:`evaluate`."""
+    return _work(tree, K, m)
 
 
 @njit(cache=True, nogil=True)
