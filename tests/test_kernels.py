@@ -72,7 +72,8 @@ def test_config_context_restores_on_error():
 
 @needs_numba
 @pytest.mark.parametrize("spec", SPACES, ids=lambda s: f"m{s[0]}n{s[1]}{s[3]}{sum(s[2])}p")
-@pytest.mark.parametrize("n_samples", [1, 5, 300])
+# 600 samples: split between threads on a machine with two cores or more.
+@pytest.mark.parametrize("n_samples", [1, 5, 300, 600])
 def test_contractions_agree(spec, n_samples):
     space = _space(*spec)
     X = _states(space, n_samples)
@@ -204,3 +205,17 @@ def test_compiled_simulation_does_not_step_in_python(monkeypatch):
     assert np.isfinite(path).all()
     with config_context(kernels="numpy"), pytest.raises(AssertionError, match="Python"):
         model.simulate([0.1, 0.0, 0.2, -0.1], np.linspace(0, 1, 11), method="rk4")
+
+
+@needs_numba
+@pytest.mark.filterwarnings("ignore::sk_hamiltonian.DomainWarning")
+def test_many_initial_states_in_threads_agree():
+    # Enough states and steps to run in one thread per core.
+    model = _fitted("gradient", damping=True)
+    x0 = np.random.default_rng(5).uniform(-0.2, 0.2, size=(40, 4))
+    t = np.linspace(0, 20.0, 2001)
+    with config_context(kernels="numpy"):
+        expected = model.simulate(x0, t, method="rk4", max_step=0.01)
+    with config_context(kernels="numba"):
+        got = model.simulate(x0, t, method="rk4", max_step=0.01)
+    np.testing.assert_allclose(got, expected, rtol=0, atol=1e-10)

@@ -12,14 +12,15 @@ path runs exactly as before.
 - :mod:`.threads`: BLAS threads chosen by problem size.
 """
 
+import os
 import threading
 
 import numpy as np
 
 _NUMBA = None
 _local = threading.local()
-# Rows of a batch from which the evaluation runs on every core (below, the
-# start of the parallel region costs more than it saves).
+# Rows of a batch per thread from which the evaluation runs on every core
+# (below, handing the work to threads costs more than it saves).
 PARALLEL_ROWS = 256
 
 
@@ -105,10 +106,11 @@ def contract(space, X, coef, order):
     value = np.empty((n, K))
     grad = np.empty((n, m, K)) if order >= 1 else np.empty((0, m, K))
     hess = np.empty((n, m, m, K)) if order >= 2 else np.empty((0, m, m, K))
-    if n >= PARALLEL_ROWS:
-        _jit.evaluate_parallel(X, tree, bound, order, value, grad, hess, 4 * _n_threads())
-    else:
-        _jit.evaluate(X, tree, bound, order, value, grad, hess, *_work(tree, K, m))
+    def part(rows):
+        _jit.evaluate(X[rows], tree, bound, order, value[rows], grad[rows] if order >= 1 else grad,
+                      hess[rows] if order >= 2 else hess, *_work(tree, K, m))
+
+    in_threads(part, n, PARALLEL_ROWS)
     return value, (grad if order >= 1 else None), (hess if order >= 2 else None)
 
 
@@ -126,7 +128,25 @@ def _work(tree, K, m):
     return entry[1]
 
 
-def _n_threads():
-    import numba
+_POOL = None
 
-    return numba.get_num_threads()
+
+def in_threads(part, n, minimum):
+    """``part(rows)`` over ``n`` rows: in one slice, or one slice per core from ``minimum`` rows.
+
+    The compiled kernels release the GIL, so threads run them in parallel
+    (no numba threading layer: nothing to go wrong in forked workers).
+    """
+    global _POOL
+    n_threads = min(os.cpu_count() or 1, n // max(1, minimum))
+    if n_threads <= 1:
+        part(slice(0, n))
+        return
+    if _POOL is None:
+        from concurrent.futures import ThreadPoolExecutor
+
+        _POOL = ThreadPoolExecutor(os.cpu_count() or 1, thread_name_prefix="sk_hamiltonian")
+    bounds = np.linspace(0, n, n_threads + 1).astype(int)
+    futures = [_POOL.submit(part, slice(a, b)) for a, b in zip(bounds[:-1], bounds[1:])]
+    for future in futures:
+        future.result()

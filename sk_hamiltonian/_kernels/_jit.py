@@ -23,7 +23,7 @@ of the nodes of a level are ``P = 1 + m + m * m`` rows of nodes: the value,
 import math
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 
 @njit(cache=True, nogil=True)
@@ -204,25 +204,3 @@ def evaluate(X, tree, coef, order, value, grad, hess, T, cur, nxt, pad):
 def work(tree, K, m):
     """The work arrays of :func:`evaluate`."""
     return _work(tree, K, m)
-
-
-@njit(cache=True, nogil=True)
-def _evaluate_rows(X, tree, coef, order, value, grad, hess, first, stop):
-    m = X.shape[1]
-    # Allocated here, in a function of its own: numba may hoist an
-    # allocation out of a parallel loop's body, sharing it between threads.
-    T, cur, nxt, pad = _work(tree, coef.shape[1], m)
-    for s in range(first, stop):
-        fill_tables(X[s], tree[0], tree[1], tree[2], tree[3], order, T)
-        root = contract_tables(T, tree, coef, order, cur, nxt, pad)
-        _store(root, s, order, m, value, grad, hess)
-
-
-@njit(cache=True, nogil=True, parallel=True)
-def evaluate_parallel(X, tree, coef, order, value, grad, hess, n_chunks):
-    """:func:`evaluate` over ``n_chunks`` chunks of rows in parallel."""
-    n = X.shape[0]
-    size = (n + n_chunks - 1) // n_chunks
-    for chunk in prange(n_chunks):
-        _evaluate_rows(X, tree, coef, order, value, grad, hess, chunk * size,
-                       min(n, (chunk + 1) * size))

@@ -18,7 +18,7 @@ Methods: 0 RK4, 1 AVF, 2 leapfrog compositions (``tree`` is ``V(q)`` and
 import math
 
 import numpy as np
-from numba import njit, prange
+from numba import njit
 
 from ._jit import _work, contract_tables, fill_tables
 
@@ -244,21 +244,12 @@ def _run(method, kind, tree, C, tree2, C2, gamma, lf_weights, nodes, weights, rt
             out[k + 1, s] = last
 
 
-@njit(cache=True, nogil=True, parallel=True)
-def integrate_parallel(method, kind, tree, C, tree2, C2, gamma, lf_weights, nodes, weights, rtol,
-                       max_iter, periodic, low, high, y0, n_sub, h, out, failed_at, n_chunks):
-    """:func:`_run` over chunks of initial states on every core."""
-    n = y0.shape[0]
-    size = (n + n_chunks - 1) // n_chunks
-    for chunk in prange(n_chunks):
-        _run(method, kind, tree, C, tree2, C2, gamma, lf_weights, nodes, weights, rtol, max_iter,
-             periodic, low, high, y0, n_sub, h, out, failed_at, chunk * size,
-             min(n, (chunk + 1) * size))
-
-
 @njit(cache=True, nogil=True)
 def integrate(method, kind, tree, C, tree2, C2, gamma, lf_weights, nodes, weights, rtol,
               max_iter, periodic, low, high, y0, n_sub, h, out, failed_at):
-    """Integrate every initial state of ``y0`` into ``out`` (n_times, n, m) in this thread."""
+    """Integrate every initial state of ``y0`` into ``out`` (n_times, n, m).
+
+    Releases the GIL: callers run chunks of initial states in threads.
+    """
     _run(method, kind, tree, C, tree2, C2, gamma, lf_weights, nodes, weights, rtol, max_iter,
          periodic, low, high, y0, n_sub, h, out, failed_at, 0, y0.shape[0])

@@ -11,7 +11,7 @@ import math
 
 import numpy as np
 
-from . import PARALLEL_ROWS, bound_tree
+from . import PARALLEL_ROWS, bound_tree, in_threads
 
 METHOD_CODES = {"rk4": 0, "avf": 1, "leapfrog": 2, "yoshida4": 2}
 
@@ -86,16 +86,25 @@ def integrate_compiled(integrator, y0, t, max_step):
     wrap = integrator.dynamics.wrap is not None
     periodic = space.periodic.copy() if wrap else np.zeros(m, dtype=bool)
     low, high = space.domain[:, 0].copy(), space.domain[:, 1].copy()
-    out = np.empty((n_times,) + y0.shape)
-    failed_at = np.empty(y0.shape[0], dtype=np.int64)
     kind = 0 if model.kind == "gradient" else 1
-    args = (code, kind, tree, C, tree2, C2, gamma, lf_weights, nodes, weights, rtol, max_iter,
-            periodic, low, high, y0, n_sub, h, out, failed_at)
-    # Long runs of many states: one chunk of states per core.
-    if y0.shape[0] > 1 and y0.shape[0] * max(1, int(n_sub.sum())) >= PARALLEL_ROWS * 64:
-        import numba
+    n_states = y0.shape[0]
+    parts = {}
 
-        _simulate_jit.integrate_parallel(*args, min(y0.shape[0], numba.get_num_threads()))
-    else:
-        _simulate_jit.integrate(*args)
+    def part(rows):
+        out = np.empty((n_times, rows.stop - rows.start, m))
+        failed_at = np.empty(rows.stop - rows.start, dtype=np.int64)
+        _simulate_jit.integrate(
+            code, kind, tree, C, tree2, C2, gamma, lf_weights, nodes, weights, rtol, max_iter,
+            periodic, low, high, np.ascontiguousarray(y0[rows]), n_sub, h, out, failed_at,
+        )
+        parts[rows.start] = (out, failed_at)
+
+    # Long runs of many states: one chunk of states per core (about
+    # PARALLEL_ROWS evaluations of the field per state and step make a chunk
+    # worth a thread).
+    n_steps = max(1, int(n_sub.sum()))
+    in_threads(part, n_states, max(1, -(-PARALLEL_ROWS * 64 // n_steps)))
+    starts = sorted(parts)
+    out = np.concatenate([parts[a][0] for a in starts], axis=1)
+    failed_at = np.concatenate([parts[a][1] for a in starts])
     return out, failed_at.astype(np.intp)
