@@ -135,10 +135,15 @@ def in_threads(part, n, minimum):
     """``part(rows)`` over ``n`` rows: in one slice, or one slice per core from ``minimum`` rows.
 
     The compiled kernels release the GIL, so threads run them in parallel
-    (no numba threading layer: nothing to go wrong in forked workers).
+    (no numba threading layer: nothing to go wrong in forked workers). At
+    most ``numba.get_num_threads()`` threads.
     """
     global _POOL
-    n_threads = min(os.cpu_count() or 1, n // max(1, minimum))
+    import numba
+
+    # numba's thread count (NUMBA_NUM_THREADS, numba.set_num_threads), all
+    # cores by default, is the knob users of numba know.
+    n_threads = min(numba.get_num_threads(), n // max(1, minimum))
     if n_threads <= 1:
         part(slice(0, n))
         return
