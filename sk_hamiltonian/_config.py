@@ -4,11 +4,18 @@ Mirrors :func:`sklearn.set_config`: a process-wide default, a per-thread
 current value, and a context manager that restores the previous value.
 """
 
+import os
 import threading
 from contextlib import contextmanager
 
 _KERNELS = ("auto", "numpy", "numba")
-_global_config = {"kernels": "auto"}
+# The environment variable SK_HAMILTONIAN_KERNELS sets the process-wide
+# default (e.g. to run a test suite on one path); unknown values are ignored
+# here and rejected by set_config.
+_global_config = {
+    "kernels": os.environ.get("SK_HAMILTONIAN_KERNELS", "auto")
+    if os.environ.get("SK_HAMILTONIAN_KERNELS") in _KERNELS else "auto"
+}
 _local = threading.local()
 
 
@@ -52,9 +59,11 @@ def set_config(kernels=None):
         simulations. ``"numpy"``: the vectorized numpy kernels.
         ``"numba"``: compiled kernels (``pip install sk_hamiltonian[fast]``);
         the first call of each kernel compiles it and caches the machine code
-        on disk, so later processes skip the compilation. ``"auto"``: numba
-        where it can be imported, else numpy. Both give the same answers up
-        to round-off. None leaves the value unchanged.
+        on disk, so later processes skip the compilation. ``"auto"`` (the
+        initial value, unless the environment variable
+        ``SK_HAMILTONIAN_KERNELS`` names another): numba where it can be
+        imported, else numpy. Both give the same answers up to round-off.
+        None leaves the value unchanged.
 
     Raises
     ------
@@ -71,10 +80,11 @@ def set_config(kernels=None):
     Examples
     --------
     >>> import sk_hamiltonian
+    >>> previous = sk_hamiltonian.get_config()["kernels"]
     >>> sk_hamiltonian.set_config(kernels="numpy")
     >>> sk_hamiltonian.get_config()["kernels"]
     'numpy'
-    >>> sk_hamiltonian.set_config(kernels="auto")
+    >>> sk_hamiltonian.set_config(kernels=previous)
     """
     if kernels is None:
         return

@@ -1,5 +1,7 @@
 """The compiled (numba) kernels against the numpy path, and the kernels switch."""
 
+import os
+
 import numpy as np
 import pytest
 
@@ -7,6 +9,9 @@ import sk_hamiltonian
 from sk_hamiltonian import config_context, get_config, set_config
 from sk_hamiltonian._kernels import numba_available
 from sk_hamiltonian._space import ModelSpace, index_set
+
+# The process-wide default (SK_HAMILTONIAN_KERNELS may set it for a whole run).
+DEFAULT = get_config()["kernels"]
 
 needs_numba = pytest.mark.skipif(
     not numba_available(), reason="numba is not installed (pip install sk_hamiltonian[fast])"
@@ -39,7 +44,8 @@ def _states(space, n, seed=0):
 
 
 def test_config_default_and_choices():
-    assert get_config() == {"kernels": "auto"}
+    assert get_config() == {"kernels": DEFAULT}
+    assert DEFAULT == os.environ.get("SK_HAMILTONIAN_KERNELS", "auto")
     with pytest.raises(ValueError, match="kernels must be one of"):
         set_config(kernels="fortran")
     with config_context(kernels="numpy"):
@@ -48,7 +54,7 @@ def test_config_default_and_choices():
             with config_context(kernels="cuda"):
                 pass  # pragma: no cover
         assert get_config()["kernels"] == "numpy"
-    assert get_config()["kernels"] == "auto"
+    assert get_config()["kernels"] == DEFAULT
     assert sk_hamiltonian.set_config is set_config
 
 
@@ -56,7 +62,7 @@ def test_numba_choice_without_numba_says_how_to_install(monkeypatch):
     monkeypatch.setattr(sk_hamiltonian._kernels, "_NUMBA", False)
     with pytest.raises(ImportError, match=r"sk_hamiltonian\[fast\]"):
         set_config(kernels="numba")
-    assert get_config()["kernels"] == "auto"
+    assert get_config()["kernels"] == DEFAULT
     # "auto" then quietly means numpy.
     from sk_hamiltonian._config import use_numba
 
@@ -67,7 +73,7 @@ def test_config_context_restores_on_error():
     with pytest.raises(RuntimeError):
         with config_context(kernels="numpy"):
             raise RuntimeError("boom")
-    assert get_config()["kernels"] == "auto"
+    assert get_config()["kernels"] == DEFAULT
 
 
 @needs_numba
