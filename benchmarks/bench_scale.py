@@ -25,7 +25,8 @@ J = 2 intervals per trajectory):
 - scaling: fit time against the number of samples and against the number of
   terms, on log-log axes with fitted slopes.
 
-``--groups`` runs some groups only (evaluation, compile, fits, scaling).
+``--groups`` runs some groups only (evaluation, compile, fits, scaling);
+``--quick`` skips the compile group and the agreement rows.
 ``--paper-n18`` instead runs the paper's largest case alone (n = 18,
 M = 60 000) with all cores and reports its time and peak memory.
 
@@ -80,12 +81,13 @@ FULL = dict(
     eval_degree=15, eval_M=3000, batch=1000, rk4_steps=10_000, avf_steps=500,
     fit_cases=[(10, 8000), (14, 8000)], cg_degree=10, cg_M=8000, iteration_cases=[14, 18],
     iteration_M=1000, samples_degree=8, samples=[1000, 2000, 4000, 8000, 16000],
-    terms_M=4000, terms=[4, 6, 8, 10, 12, 14], repeats=3,
+    terms_M=4000, terms=[4, 6, 8, 10, 12, 14], repeats=3, quick=False,
 )
 QUICK = dict(
     eval_degree=8, eval_M=400, batch=200, rk4_steps=300, avf_steps=50,
     fit_cases=[(6, 400)], cg_degree=5, cg_M=400, iteration_cases=[8], iteration_M=100,
     samples_degree=4, samples=[200, 400, 800], terms_M=300, terms=[3, 4, 5], repeats=1,
+    quick=True,
 )
 COLUMNS = ["group", "measure", "value", "unit", "target", "met", "note"]
 
@@ -223,7 +225,7 @@ def evaluation(cfg, rows):
     note = f"{space.n_terms} terms; CPU time (wall {{:.4g}})"
     for kernels, r in results.items():
         target = EVAL_TARGETS[kernels]
-        group = f"evaluation ({kernels})"
+        group = "evaluation"
         row(rows, group, f"predict, one state [{kernels}]", r["one"][0] * 1e6, "us",
             target["one"], note.format(r["one"][1] * 1e6))
         row(rows, group, f"gradient contraction, one state [{kernels}]", r["kernel"][0] * 1e6,
@@ -231,17 +233,18 @@ def evaluation(cfg, rows):
         row(rows, group, f"predict, batch (per state) [{kernels}]", r["batch"][0] * 1e6, "us",
             target["batch"], note.format(r["batch"][1] * 1e6))
         rk4, avf = r["rk4"], r["avf"]
-        row(rows, f"simulation ({kernels})", f"{n} RK4 steps from u0* [{kernels}]",
+        row(rows, "simulation", f"{n} RK4 steps from u0* [{kernels}]",
             rk4[0] * 10_000 / n, "s per 1e4", target["rk4"],
             f"CPU time (wall {rk4[1] * 10_000 / n:.3g}); measured over {n} steps")
-        row(rows, f"simulation ({kernels})", f"one AVF step, in RK4 steps [{kernels}]",
+        row(rows, "simulation", f"one AVF step, in RK4 steps [{kernels}]",
             (avf[0] / n_avf) / (rk4[0] / n), "RK4 steps", target["avf"],
             f"CPU time (wall {(avf[1] / n_avf) / (rk4[1] / n):.3g}); step {DT}, "
             f"{n_avf} AVF steps; one AVF step {avf[0] / n_avf * 1e3:.3g} ms")
-    row(rows, "evaluation (numpy)", "explicit products, batch (per state; old path)",
+    row(rows, "evaluation", "explicit products, batch (per state; old path)",
         reference[0] * 1e6, "us", None,
         "gradients of every function, then a matrix product; " + note.format(reference[1] * 1e6))
-    if "numba" in results:
+    if "numba" in results and not cfg["quick"]:
+        # Full runs only (a difference may be exactly zero; the tests check agreement).
         (p0, s0), (p1, s1) = results["numpy"]["values"], results["numba"]["values"]
         for what, a, b in (("predict, batch", p0, p1), ("200 RK4 steps", s0, s1)):
             row(rows, "paths agree", f"{what}: max |numba - numpy| / max |numpy|",
@@ -256,14 +259,14 @@ start = time.perf_counter()
 from sk_hamiltonian import HamiltonianRegressor, config_context
 X = np.random.default_rng(0).uniform(-1, 1, size=(300, 4))
 model = HamiltonianRegressor(degree=4, domain=[[-1, 1]] * 4).fit(X, X[:, ::-1])
-fitted = time.perf_counter()
+fitted, cpu = time.perf_counter(), time.process_time()
 with config_context(kernels="numba"):
     model.predict(X[:1]); model.predict(X); model.hamiltonian(X[:2])
     model.simulate(X[0], np.linspace(0, 0.1, 3), method="rk4")
     model.simulate(X[0], np.linspace(0, 0.1, 3), method="avf")
     model.simulate(X[:80] * 0.1, np.linspace(0, 5.0, 500), method="rk4", max_step=0.1,
                    on_failure="nan")
-print(time.perf_counter() - fitted)
+print(time.perf_counter() - fitted, time.process_time() - cpu)
 """
 
 
@@ -279,9 +282,10 @@ def compile_times(rows):
         for label in ("empty cache: compile", "cached on disk: load"):
             out = subprocess.run([sys.executable, "-c", COMPILE_SCRIPT], env=env, check=True,
                                  capture_output=True, text=True).stdout
-            row(rows, "compile", f"first calls of every compiled kernel, {label}",
-                float(out.split()[-1]), "s", None,
-                "wall clock, one process; predict, H, RK4, AVF (Hessian), parallel RK4")
+            wall, cpu = (float(x) for x in out.split()[-2:])
+            row(rows, "compile", f"first calls of every compiled kernel, {label}", cpu, "s CPU",
+                None, f"wall {wall:.3g} s; one process: predict, H, RK4, AVF (Hessian), "
+                "RK4 of many states in threads")
 
 
 def fits(cfg, rows):
@@ -429,7 +433,7 @@ def main(argv=None):
         with threadpool_limits(1):
             if "evaluation" in args.groups:
                 evaluation(cfg, rows)
-            if "compile" in args.groups and numba_available():
+            if "compile" in args.groups and numba_available() and not args.quick:
                 compile_times(rows)
             if "fits" in args.groups:
                 fits(cfg, rows)
