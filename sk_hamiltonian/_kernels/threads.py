@@ -1,34 +1,34 @@
-"""BLAS threads chosen by problem size and machine load (threadpoolctl, from scikit-learn).
+"""BLAS threads chosen by problem size (threadpoolctl, which comes with scikit-learn).
 
-A multi-threaded BLAS pays for its threads on large products on free cores
-only. On small products the start-up costs more than it saves, and on a busy
-machine a second thread waits for a core that another process holds: every
-fit then waits for its slowest thread. Measured on a shared 2-core VM at load
-average 12 (``A^T A`` by ``dsyrk``, 20 000 rows; best of 3, wall clock):
+A multi-threaded BLAS pays for its threads on large products only. On small
+ones the start-up costs more than it saves, and on a busy machine a second
+thread waits for a core that another process holds while the whole product
+waits for it. Measured with ``benchmarks/bench_threads.py`` (``A^T A`` by
+``dsyrk``, 20 000 rows, 40 000 for the last line; best of 3, wall clock) on
+a shared 2-core VM, two runs at load average 12 to 16:
 
-========  ===========  =========  ==========
-columns   multiply-add 1 thread   2 threads
-========  ===========  =========  ==========
-100       1e8          21 ms      1 601 ms
-400       1.6e9        214 ms     1 546 ms
-800       6.4e9        967 ms     1 611 ms
-1 000     2e10         2 564 ms   3 334 ms
-========  ===========  =========  ==========
+========  =============  ==================  ==================
+columns   multiply-adds  2 threads / 1, run 1  2 threads / 1, run 2
+========  =============  ==================  ==================
+100       1e8            77                  65
+400       1.6e9          7.2                 4.3
+800       6.4e9          1.7                 1.2
+1 000     2e10           1.3                 0.67
+========  =============  ==================  ==================
 
-(40 000 rows for the last line.) :func:`limit_blas` therefore runs a piece of
-work on one BLAS thread when it is small (below :data:`SERIAL_FLOPS`) or when
-the cores are taken (a one-minute load average above the number of cores
-minus one half, this process's own thread counting one), and leaves the BLAS
-as the user configured it otherwise (all cores by default).
+Below 1e10 multiply-adds the second thread lost in both runs, by far on
+small products; above, it won once. :func:`limit_blas` therefore runs work
+below :data:`SERIAL_FLOPS` on one BLAS thread and leaves the BLAS as the
+user configured it (all cores by default) for larger work.
 """
 
-import os
 from contextlib import nullcontext
 
-# Multiply-adds below which a BLAS call or a whole fit runs on one thread.
-# A Gram update of n_rows x n_columns costs n_rows * n_columns**2 / 2; 2e9
-# is, e.g., 100 000 rows of 200 columns, about 0.2 s on one core.
-SERIAL_FLOPS = 2e9
+# Multiply-adds below which a BLAS call or a whole fit runs on one thread
+# (the table above). A Gram update of n_rows x n_columns costs n_rows *
+# n_columns**2 / 2: 1e10 is, e.g., 32 000 rows (8 000 states of 4
+# variables) of 800 columns.
+SERIAL_FLOPS = 1e10
 
 _controller = None
 
@@ -43,18 +43,9 @@ def _threadpools():
     return _controller
 
 
-def cores_busy():
-    """Whether other processes keep the cores busy (one-minute load average; False if unknown)."""
-    try:
-        load = os.getloadavg()[0]
-    except (AttributeError, OSError):  # not on every platform
-        return False
-    return load > (os.cpu_count() or 1) - 0.5
-
-
 def blas_threads(flops):
-    """BLAS threads for work of ``flops`` multiply-adds: 1 if small or the cores are busy, else None."""
-    return 1 if flops < SERIAL_FLOPS or cores_busy() else None
+    """BLAS threads for work of ``flops`` multiply-adds: 1 below :data:`SERIAL_FLOPS`, else None (as configured)."""
+    return 1 if flops < SERIAL_FLOPS else None
 
 
 def limit_blas(flops):
