@@ -5,7 +5,8 @@ ones the start-up costs more than it saves, and on a busy machine a second
 thread waits for a core that another process holds while the whole product
 waits for it. Measured with ``benchmarks/bench_threads.py`` (``A^T A`` by
 ``dsyrk``, 20 000 rows, 40 000 for the last line; best of 3, wall clock) on
-a shared 2-core VM, two runs at load average 12 to 16:
+a shared 2-core VM, two runs at load average 12 to 16 (run 1 with the same
+code before it became that script):
 
 ========  =============  ==================  ==================
 columns   multiply-adds  2 threads / 1, run 1  2 threads / 1, run 2
