@@ -51,9 +51,11 @@ def _compiled():
 
 
 def bound_tree(space, coef):
-    """The tree of ``space`` and ``coef`` in its leaf order, cached on the space.
+    """The tree of ``space`` and ``coef`` bound to it, both cached on the space.
 
-    The coefficients are cached by identity and a fingerprint of their
+    The bound coefficients are a dense (width, K, n_prefixes) array: ``[c, k,
+    p]`` is target ``k``'s coefficient of the function with prefix ``p`` and
+    last column ``c``. The coefficients are cached by identity and a fingerprint of their
     values, as :meth:`ModelSpace._bound` does, so that changing ``coef`` in
     place is seen.
     """
