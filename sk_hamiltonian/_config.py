@@ -130,7 +130,7 @@ def config_context(*, kernels=None):
 
     Notes
     -----
-    Like :func:`sklearn.config_context`, the block changes the process-wide
+    Like ``sklearn.config_context``, the block changes the process-wide
     default as well as this thread's value, and restores both.
 
     Examples
