@@ -1,7 +1,10 @@
 """Speed at scale: evaluation, simulation and fitting of the paper's Example 5, in one run.
 
-Every target of issue 9 is measured side by side in the same process and
-reported against its target; the fit targets are ratios to one ``A.T @ A`` of
+Every target of issues 9 and 19 is measured side by side in the same process
+and reported against its target: evaluation and simulation on both kernel
+paths (numpy, and numba when it is installed: ``pip install
+sk_hamiltonian[fast]``), with the compiled path's first-call latency (cold
+compile into an empty cache, then loading from the disk cache); the fit targets are ratios to one ``A.T @ A`` of
 a design of the same shape, timed in the same run. Absolute times depend on
 the machine and its load (the reported run is from a shared 2-core VM); the
 ratios are what to compare.
@@ -22,6 +25,8 @@ J = 2 intervals per trajectory):
 - scaling: fit time against the number of samples and against the number of
   terms, on log-log axes with fitted slopes.
 
+``--groups`` runs some groups only (evaluation, compile, fits, scaling);
+``--quick`` skips the compile group and the agreement rows.
 ``--paper-n18`` instead runs the paper's largest case alone (n = 18,
 M = 60 000) with all cores and reports its time and peak memory.
 
@@ -40,7 +45,7 @@ import sys
 # not depend on what other users leave free); the paper's n = 18 case uses
 # every core instead, as a user would.
 _THREADS = str(os.cpu_count() or 1) if "--paper-n18" in sys.argv else "1"
-for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS", "NUMBA_NUM_THREADS"):
     os.environ[_var] = _THREADS
 
 import argparse  # noqa: E402
@@ -61,7 +66,8 @@ import matplotlib.ticker  # noqa: E402
 import numpy as np  # noqa: E402
 from threadpoolctl import threadpool_info, threadpool_limits  # noqa: E402
 
-from sk_hamiltonian import DerivativeTransformer, HamiltonianRegressor  # noqa: E402
+from sk_hamiltonian import DerivativeTransformer, HamiltonianRegressor, config_context  # noqa: E402
+from sk_hamiltonian._kernels import numba_available  # noqa: E402
 from sk_hamiltonian._design import column_groups, hamiltonian_blocks, quadrature_nodes  # noqa: E402
 from sk_hamiltonian._design_operator import DesignOperator  # noqa: E402
 from sk_hamiltonian._solvers import NormalEquations  # noqa: E402
@@ -75,12 +81,13 @@ FULL = dict(
     eval_degree=15, eval_M=3000, batch=1000, rk4_steps=10_000, avf_steps=500,
     fit_cases=[(10, 8000), (14, 8000)], cg_degree=10, cg_M=8000, iteration_cases=[14, 18],
     iteration_M=1000, samples_degree=8, samples=[1000, 2000, 4000, 8000, 16000],
-    terms_M=4000, terms=[4, 6, 8, 10, 12, 14], repeats=3,
+    terms_M=4000, terms=[4, 6, 8, 10, 12, 14], repeats=3, quick=False,
 )
 QUICK = dict(
     eval_degree=8, eval_M=400, batch=200, rk4_steps=300, avf_steps=50,
     fit_cases=[(6, 400)], cg_degree=5, cg_M=400, iteration_cases=[8], iteration_M=100,
     samples_degree=4, samples=[200, 400, 800], terms_M=300, terms=[3, 4, 5], repeats=1,
+    quick=True,
 )
 COLUMNS = ["group", "measure", "value", "unit", "target", "met", "note"]
 
@@ -90,6 +97,9 @@ def parse_args(argv=None):
     parser.add_argument("--quick", action="store_true", help="small smoke run (< 60 s)")
     parser.add_argument("--paper-n18", action="store_true",
                         help="only the paper's n = 18, M = 60 000 fit, with all cores")
+    parser.add_argument("--groups", nargs="+", default=["evaluation", "compile", "fits", "scaling"],
+                        choices=["evaluation", "compile", "fits", "scaling"],
+                        help="which groups to run (default: all)")
     parser.add_argument("--output", type=Path,
                         default=Path(__file__).resolve().parent / "results",
                         help="directory for CSV and PNG outputs")
@@ -166,40 +176,116 @@ def row(rows, group, measure, value, unit, target=None, note=""):
 
 
 # ------------------------------------------------------------------ groups
+def kernel_paths():
+    """The kernel paths to measure: numpy always, numba when it is installed."""
+    return ["numpy"] + (["numba"] if numba_available() else [])
+
+
+# Targets of each path: issue 9's for numpy (which must not get slower), issue 19's for numba.
+EVAL_TARGETS = {
+    "numpy": dict(one=50, batch=5, rk4=2.0, avf=3.0),
+    "numba": dict(one=15, batch=2, rk4=0.5, avf=3.0),
+}
+
+
 def evaluation(cfg, rows):
-    print(f"# evaluation and simulation, degree {cfg['eval_degree']} model")
+    print(f"# evaluation and simulation, degree {cfg['eval_degree']} model, both kernel paths")
     model = fit(layout(cfg["eval_M"]), cfg["eval_degree"])
     space = model._space
     u = U0[None]
     batch = np.random.default_rng(1).uniform(*SYSTEM.domain.T, size=(cfg["batch"], 4))
-    one = both(lambda: model.predict(u), 5, 200)
-    many = [x / cfg["batch"] for x in both(lambda: model.predict(batch), cfg["repeats"])]
+    n = cfg["rk4_steps"]
+    t = np.linspace(0, n * DT, n + 1)
+    n_avf = cfg["avf_steps"]
+    t_avf = np.linspace(0, n_avf * DT, n_avf + 1)
+    results = {}
+    for kernels in kernel_paths():
+        with config_context(kernels=kernels):
+            # Warm up: the first call of a compiled kernel loads (or compiles) it.
+            model.predict(u), model.predict(batch[:300])
+            model.simulate(U0, t[:3], method="rk4", max_step=np.inf)
+            model.simulate(U0, t_avf[:3], method="avf", max_step=np.inf)
+            results[kernels] = dict(
+                one=both(lambda: model.predict(u), 5, 200),
+                kernel=both(lambda: space.gradient_dot(u, model.coef_), 5, 200),
+                batch=[x / cfg["batch"] for x in both(lambda: model.predict(batch), cfg["repeats"])],
+                rk4=both(lambda: model.simulate(U0, t, method="rk4", max_step=np.inf), 1),
+                avf=both(lambda: model.simulate(U0, t_avf, method="avf", max_step=np.inf), 1),
+                values=(model.predict(batch), model.simulate(U0, t[:200], method="rk4",
+                                                             max_step=np.inf)),
+            )
 
     def explicit():
         grad = space.gradients(batch) @ model.coef_
         return np.concatenate([-grad[:, 2:], grad[:, :2]], axis=1)
 
-    assert np.allclose(explicit(), model.predict(batch), rtol=1e-10, atol=1e-10)
-    reference = [x / cfg["batch"] for x in both(explicit, cfg["repeats"])]
+    with config_context(kernels="numpy"):
+        assert np.allclose(explicit(), model.predict(batch), rtol=1e-10, atol=1e-10)
+        reference = [x / cfg["batch"] for x in both(explicit, cfg["repeats"])]
     note = f"{space.n_terms} terms; CPU time (wall {{:.4g}})"
-    row(rows, "evaluation", "predict, one state", one[0] * 1e6, "us", 50,
-        note.format(one[1] * 1e6))
-    row(rows, "evaluation", "predict, batch (per state)", many[0] * 1e6, "us", 5,
-        note.format(many[1] * 1e6))
+    for kernels, r in results.items():
+        target = EVAL_TARGETS[kernels]
+        group = "evaluation"
+        row(rows, group, f"predict, one state [{kernels}]", r["one"][0] * 1e6, "us",
+            target["one"], note.format(r["one"][1] * 1e6))
+        row(rows, group, f"gradient contraction, one state [{kernels}]", r["kernel"][0] * 1e6,
+            "us", None, "ModelSpace.gradient_dot alone; " + note.format(r["kernel"][1] * 1e6))
+        row(rows, group, f"predict, batch (per state) [{kernels}]", r["batch"][0] * 1e6, "us",
+            target["batch"], note.format(r["batch"][1] * 1e6))
+        rk4, avf = r["rk4"], r["avf"]
+        row(rows, "simulation", f"{n} RK4 steps from u0* [{kernels}]",
+            rk4[0] * 10_000 / n, "s per 1e4", target["rk4"],
+            f"CPU time (wall {rk4[1] * 10_000 / n:.3g}); measured over {n} steps")
+        row(rows, "simulation", f"one AVF step, in RK4 steps [{kernels}]",
+            (avf[0] / n_avf) / (rk4[0] / n), "RK4 steps", target["avf"],
+            f"CPU time (wall {(avf[1] / n_avf) / (rk4[1] / n):.3g}); step {DT}, "
+            f"{n_avf} AVF steps; one AVF step {avf[0] / n_avf * 1e3:.3g} ms")
     row(rows, "evaluation", "explicit products, batch (per state; old path)",
         reference[0] * 1e6, "us", None,
         "gradients of every function, then a matrix product; " + note.format(reference[1] * 1e6))
-    n = cfg["rk4_steps"]
-    t = np.linspace(0, n * DT, n + 1)
-    rk4 = both(lambda: model.simulate(U0, t, method="rk4", max_step=np.inf), 1)
-    n_avf = cfg["avf_steps"]
-    t_avf = np.linspace(0, n_avf * DT, n_avf + 1)
-    avf = both(lambda: model.simulate(U0, t_avf, method="avf", max_step=np.inf), 1)
-    row(rows, "simulation", f"{n} RK4 steps from u0*", rk4[0] * 10_000 / n, "s per 1e4",
-        2.0, f"CPU time (wall {rk4[1] * 10_000 / n:.3g}); measured over {n} steps")
-    row(rows, "simulation", "one AVF step, in RK4 steps", (avf[0] / n_avf) / (rk4[0] / n),
-        "RK4 steps", 3.0,
-        f"CPU time (wall {(avf[1] / n_avf) / (rk4[1] / n):.3g}); step {DT}, {n_avf} AVF steps")
+    if "numba" in results and not cfg["quick"]:
+        # Full runs only (a difference may be exactly zero; the tests check agreement).
+        (p0, s0), (p1, s1) = results["numpy"]["values"], results["numba"]["values"]
+        for what, a, b in (("predict, batch", p0, p1), ("200 RK4 steps", s0, s1)):
+            row(rows, "paths agree", f"{what}: max |numba - numpy| / max |numpy|",
+                float(np.abs(b - a).max() / np.abs(a).max()), "relative", 1e-12)
+        row(rows, "paths agree", "RK4 run time, numpy / numba",
+            results["numpy"]["rk4"][0] / results["numba"]["rk4"][0], "ratio", None)
+
+
+COMPILE_SCRIPT = """
+import time, numpy as np
+start = time.perf_counter()
+from sk_hamiltonian import HamiltonianRegressor, config_context
+X = np.random.default_rng(0).uniform(-1, 1, size=(300, 4))
+model = HamiltonianRegressor(degree=4, domain=[[-1, 1]] * 4).fit(X, X[:, ::-1])
+fitted, cpu = time.perf_counter(), time.process_time()
+with config_context(kernels="numba"):
+    model.predict(X[:1]); model.predict(X); model.hamiltonian(X[:2])
+    model.simulate(X[0], np.linspace(0, 0.1, 3), method="rk4")
+    model.simulate(X[0], np.linspace(0, 0.1, 3), method="avf")
+    model.simulate(X[:80] * 0.1, np.linspace(0, 5.0, 500), method="rk4", max_step=0.1,
+                   on_failure="nan")
+print(time.perf_counter() - fitted, time.process_time() - cpu)
+"""
+
+
+def compile_times(rows):
+    """First-call latency of the compiled path: cold (empty cache) and warm (cached on disk)."""
+    import tempfile
+
+    print("# first-call latency of the compiled kernels")
+    with tempfile.TemporaryDirectory() as cache:
+        env = dict(os.environ, NUMBA_CACHE_DIR=cache)
+        env["PYTHONPATH"] = os.pathsep.join(
+            [str(Path(__file__).resolve().parents[1])] + ([env["PYTHONPATH"]] if env.get("PYTHONPATH") else []))
+        for label in ("empty cache: compile", "cached on disk: load"):
+            out = subprocess.run([sys.executable, "-c", COMPILE_SCRIPT], env=env, check=True,
+                                 capture_output=True, text=True).stdout
+            wall, cpu = (float(x) for x in out.split()[-2:])
+            row(rows, "compile", f"first calls of every compiled kernel, {label}", cpu, "s CPU",
+                None, f"wall {wall:.3g} s; one process: predict, H, RK4, AVF (Hessian), "
+                "RK4 of many states in threads")
 
 
 def fits(cfg, rows):
@@ -345,9 +431,14 @@ def main(argv=None):
         cfg = QUICK if args.quick else FULL
         rows = []
         with threadpool_limits(1):
-            evaluation(cfg, rows)
-            fits(cfg, rows)
-            scaling(cfg, rows, args.output)
+            if "evaluation" in args.groups:
+                evaluation(cfg, rows)
+            if "compile" in args.groups and numba_available() and not args.quick:
+                compile_times(rows)
+            if "fits" in args.groups:
+                fits(cfg, rows)
+            if "scaling" in args.groups:
+                scaling(cfg, rows, args.output)
         name = "scale.csv"
     with open(args.output / name, "w", newline="") as handle:
         writer = csv.DictWriter(handle, COLUMNS)

@@ -4,6 +4,7 @@ The estimators follow Wu, Qin & Xiu, "Structure-preserving method for
 reconstructing unknown Hamiltonian systems from trajectory data".
 """
 
+from ._config import config_context, get_config, set_config
 from ._derivatives import DerivativeTransformer
 from ._hamiltonian import HamiltonianRegressor
 from ._trajectories import unpack_derivatives
@@ -27,5 +28,8 @@ __all__ = [
     "SimulationError",
     "SmoothingWarning",
     "VectorFieldRegressor",
+    "config_context",
+    "get_config",
+    "set_config",
     "unpack_derivatives",
 ]

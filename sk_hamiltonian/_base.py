@@ -13,6 +13,7 @@ from sklearn.utils.validation import _check_sample_weight, check_is_fitted, vali
 from ._design import TrainingData
 from ._integrate import integrate, make_integrator, raise_on_failure
 from ._scoring import multistep_errors
+from ._kernels.threads import gram_flops, limit_blas
 from ._least_squares import (
     CGNotConverged,
     LeastSquaresProblem,
@@ -150,11 +151,12 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
         self._partial = None
         data = self._training_data(X, y, sample_weight)
         self._set_up_space(data)
-        self.solver_ = choose_solver(
-            self.solver, data.n_rows(self.fit_on) * self._rows_per_sample(data.states.shape[1]),
-            self.powers_.shape[0],
-        )
-        self._fit_coef(data)
+        n_rows = data.n_rows(self.fit_on) * self._rows_per_sample(data.states.shape[1])
+        self.solver_ = choose_solver(self.solver, n_rows, self.powers_.shape[0])
+        # Small problems on one BLAS thread: thread start-up and, on a busy
+        # machine, oversubscription cost more than they save.
+        with limit_blas(gram_flops(n_rows, self._n_unknowns())):
+            self._fit_coef(data)
         self._finish_fit(data)
         return self
 
@@ -647,7 +649,9 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
             max_step = self._default_step(integrator.name)
         if on_failure not in ("raise", "nan"):
             raise ValueError(f"on_failure must be 'raise' or 'nan'; got {on_failure!r}.")
-        Y, failed_at = integrate(integrator, x0, t, max_step)
+        # Many small products: one BLAS thread.
+        with limit_blas(0):
+            Y, failed_at = integrate(integrator, x0, t, max_step)
         if on_failure == "raise":
             raise_on_failure(failed_at, t, what=f"the learned system ({type(self).__name__})")
         Y = np.swapaxes(Y, 0, 1)

@@ -10,6 +10,7 @@ from ._conservation import energy_trend
 from ._design import column_groups, hamiltonian_blocks, quadrature_nodes
 from ._design_operator import DesignOperator
 from ._integrate import Dynamics, apply_structure
+from ._kernels.simulate import KernelModel
 from ._solvers import NormalEquations
 from ._space import ModelSpace
 from ._trajectories import check_n_states
@@ -361,6 +362,9 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
             self._vector_field, jacobian=self._jacobian,
             damping=self._damping(), n_nodes=quadrature_nodes(self._eval_space),
             wrap=self._space.wrap if self.periodic_.any() else None, **split,
+            compiled=KernelModel(
+                "gradient", self._eval_space, self._eval_coef, self._damping(), self._split
+            ),
         )
 
     def hamiltonian(self, X):

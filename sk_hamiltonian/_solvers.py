@@ -41,6 +41,7 @@ from scipy import linalg
 from scipy.linalg import blas
 from sklearn.exceptions import ConvergenceWarning
 
+from ._kernels.threads import gram_flops, limit_blas
 from .exceptions import IllConditionedWarning
 
 # Designs up to this many entries (400 MB in float64) are factorized whole by
@@ -182,8 +183,9 @@ class NormalEquations:
 
     def add(self, A, b, group=0):
         """Add a row block ``A`` (columns ``groups[group]``) and its right-hand side ``b``."""
-        blas.dsyrk(1.0, np.asfortranarray(A), beta=1.0, c=self.grams[group], trans=1,
-                   lower=0, overwrite_c=1)
+        with limit_blas(gram_flops(*A.shape)):
+            blas.dsyrk(1.0, np.asfortranarray(A), beta=1.0, c=self.grams[group], trans=1,
+                       lower=0, overwrite_c=1)
         if self.rhs is None:
             self.rhs = np.zeros((self.n_columns,) + b.shape[1:])
         self.rhs[self.groups[group]] += A.T @ b

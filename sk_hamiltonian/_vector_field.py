@@ -6,6 +6,7 @@ from ._base import BaseTrajectoryRegressor
 from ._design import quadrature_nodes, vector_field_blocks
 from ._design_operator import DesignOperator
 from ._integrate import Dynamics
+from ._kernels.simulate import KernelModel
 from ._solvers import NormalEquations
 
 
@@ -171,4 +172,5 @@ class VectorFieldRegressor(BaseTrajectoryRegressor):
             self._vector_field, jacobian=self._jacobian,
             n_nodes=quadrature_nodes(self._eval_space, of_gradient=False),
             wrap=self._space.wrap if self.periodic_.any() else None,
+            compiled=KernelModel("value", self._eval_space, self._eval_coef),
         )

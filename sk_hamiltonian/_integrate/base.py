@@ -4,6 +4,7 @@ import math
 
 import numpy as np
 
+from .._config import use_numba
 from ..exceptions import SimulationError
 
 
@@ -43,11 +44,15 @@ class Dynamics:
     wrap : callable, default=None
         Maps states to their canonical representatives (periodic variables
         into their period); applied between output times.
+    compiled : KernelModel, default=None
+        The model's space and coefficients, for whole integrations as
+        compiled loops (:mod:`sk_hamiltonian._kernels.simulate`); None: the
+        steps above only.
     """
 
     def __init__(
         self, field, *, jacobian=None, damping=None, kinetic_gradient=None,
-        potential_gradient=None, n_nodes=1, wrap=None,
+        potential_gradient=None, n_nodes=1, wrap=None, compiled=None,
     ):
         self.field = field
         self.jacobian = jacobian
@@ -56,6 +61,7 @@ class Dynamics:
         self.potential_gradient = potential_gradient
         self.n_nodes = n_nodes
         self.wrap = wrap
+        self.compiled = compiled
 
 
 class FixedStepIntegrator:
@@ -140,6 +146,12 @@ def integrate(integrator, y0, t, max_step=None):
         For each trajectory, the index into ``t`` of the first output time it
         could not reach, or ``n_times`` if it reached them all.
     """
+    if getattr(integrator.dynamics, "compiled", None) is not None and use_numba():
+        from .._kernels.simulate import integrate_compiled
+
+        result = integrate_compiled(integrator, y0, t, max_step)
+        if result is not None:
+            return result
     wrap = integrator.dynamics.wrap or (lambda y: y)
     y = wrap(np.array(y0, dtype=float))
     n_times = t.shape[0]

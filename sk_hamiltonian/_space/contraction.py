@@ -219,7 +219,9 @@ class ContractionPlan:
                     new[made] = (incidence @ flat).reshape(-1, K, n_samples)
                     made += 1
             current = new if keep is None else new[keep]
-        return current[:, 0]
+        # With one variable there is no level: copy the results out of the
+        # workspace, which the next call reuses (the caller keeps them).
+        return current[:, 0] if steps else current[:, 0].copy()
 
     def adjoint(self, tables, weights, order):
         """The transpose of :meth:`contract`: ``sum_s sum_q weights[q, :, s] d^q phi_j(x_s)``.

@@ -9,6 +9,8 @@ over a given set of multi-indices.
 
 import numpy as np
 
+from .. import _kernels
+from .._config import use_numba
 from . import tensor
 from .contraction import ContractionPlan
 from .fourier import fourier_column, wrap_to_period
@@ -82,7 +84,9 @@ class ModelSpace:
 
     def __getstate__(self):
         # Caches are rebuilt on first use; keep pickles (joblib, dask) small.
-        return {**self.__dict__, "_contraction": None, "_binding": None}
+        state = {**self.__dict__, "_contraction": None, "_binding": None}
+        state.pop("_kernel_tree", None)
+        return state
 
     @property
     def n_states(self):
@@ -182,8 +186,16 @@ class ModelSpace:
         """
         tensor.gradient_rows(self.factor_tables(X, 1), self.layout, rows, outs)
 
+    def _compiled(self, X, coef, order):
+        """:func:`sk_hamiltonian._kernels.contract` shaped as the numpy path's results."""
+        value, grad, hess = _kernels.contract(self, X, coef, order)
+        result = (value, grad, hess)[order]
+        return result[..., 0] if np.ndim(coef) == 1 else result
+
     def value_dot(self, X, coef):
         """Values of ``sum_j coef[j] phi_j`` (``coef`` may have a trailing target axis)."""
+        if use_numba():
+            return self._compiled(X, coef, 0)
         result = self._contract(X, coef, 0)
         if result is None:
             return self.values(X) @ coef
@@ -193,6 +205,8 @@ class ModelSpace:
 
     def gradient_dot(self, X, coef):
         """Gradient of ``sum_j coef[j] phi_j``, ndarray of shape (n_samples, n_states) + coef.shape[1:]."""
+        if use_numba():
+            return self._compiled(X, coef, 1)
         result = self._contract(X, coef, 1)
         if result is None:
             if np.ndim(coef) == 1:
@@ -205,6 +219,8 @@ class ModelSpace:
 
     def hessian_dot(self, X, coef):
         """Hessian of ``sum_j coef[j] phi_j``, ndarray of shape (n_samples, n_states, n_states)."""
+        if use_numba() and np.ndim(coef) == 1:
+            return self._compiled(X, coef, 2)
         result = self._contract(X, coef, 2)
         if result is None:
             H = tensor.hessian_dot(self.factor_tables(X, 2), self.layout, coef)

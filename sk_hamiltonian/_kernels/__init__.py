@@ -1,0 +1,159 @@
+"""Compiled kernels (numba), behind the narrow interface of the model space.
+
+numba is optional (``pip install sk_hamiltonian[fast]``). Nothing here
+imports it until a kernel is first asked for, and every caller checks
+:func:`sk_hamiltonian._config.use_numba` first, so without numba the numpy
+path runs exactly as before.
+
+- :func:`contract`: value, gradient and Hessian of ``sum_j coef[j] phi_j``
+  at many states (what :class:`~sk_hamiltonian._space.ModelSpace`'s
+  ``value_dot``, ``gradient_dot`` and ``hessian_dot`` return);
+- :mod:`.simulate`: whole fixed-step integrations as compiled loops;
+- :mod:`.threads`: BLAS threads chosen by problem size.
+"""
+
+import os
+import threading
+
+import numpy as np
+
+_NUMBA = None
+_local = threading.local()
+# Rows of a batch per thread from which the evaluation runs on every core
+# (below, handing the work to threads costs more than it saves).
+PARALLEL_ROWS = 256
+
+
+def numba_available():
+    """Whether numba can be imported (checked once per process)."""
+    global _NUMBA
+    if _NUMBA is None:
+        try:
+            import numba  # noqa: F401
+        except Exception:  # ImportError, or a numba broken against this numpy
+            _NUMBA = False
+        else:
+            _NUMBA = True
+    return _NUMBA
+
+
+_JIT = None
+
+
+def _compiled():
+    """The module of compiled kernels (imported, and numba with it, on first use)."""
+    global _JIT
+    if _JIT is None:
+        from . import _jit
+
+        _JIT = _jit
+    return _JIT
+
+
+def bound_tree(space, coef):
+    """The tree of ``space`` and ``coef`` bound to it, both cached on the space.
+
+    The bound coefficients are a dense (width, K, n_prefixes) array: ``[c, k,
+    p]`` is target ``k``'s coefficient of the function with prefix ``p`` and
+    last column ``c``. The coefficients are cached by identity and a fingerprint of their
+    values, as :meth:`ModelSpace._bound` does, so that changing ``coef`` in
+    place is seen.
+    """
+    cache = space.__dict__.get("_kernel_tree")
+    if cache is None:
+        from .tree import tree_arrays
+
+        cache = space.__dict__["_kernel_tree"] = [tree_arrays(space), None]
+    (tree, order), binding = cache
+    fingerprint = (space._probe @ coef).tolist()
+    if binding is not None and binding[0] is coef and binding[1] == fingerprint:
+        return tree, binding[2]
+    coef2 = np.asarray(coef, dtype=float).reshape(space.n_terms, -1)
+    leaf_start, leaf_column = tree[4], tree[5]
+    n_prefixes = leaf_start.size - 1
+    leaf_parent = np.repeat(np.arange(n_prefixes), np.diff(leaf_start))
+    # Dense (width, K, n_prefixes): the leaves are then a few vectorized
+    # passes over the prefixes, with no branch per prefix.
+    bound = np.zeros((tree[10], coef2.shape[1], n_prefixes))
+    bound[leaf_column, :, leaf_parent] = coef2[order]
+    cache[1] = (coef, fingerprint, bound)
+    return tree, bound
+
+
+def contract(space, X, coef, order):
+    """Value, gradient and Hessian of ``sum_j coef[j] phi_j`` at the rows of ``X``.
+
+    Parameters
+    ----------
+    space : ModelSpace
+        The basis.
+    X : ndarray of shape (n_samples, n_states)
+        States.
+    coef : ndarray of shape (n_terms,) or (n_terms, K)
+        Coefficients.
+    order : {0, 1, 2}
+        Highest derivative order.
+
+    Returns
+    -------
+    value : ndarray of shape (n_samples, K)
+    grad : ndarray of shape (n_samples, n_states, K) or None (order 0)
+    hess : ndarray of shape (n_samples, n_states, n_states, K) or None (order < 2)
+    """
+    _jit = _compiled()
+    tree, bound = bound_tree(space, coef)
+    X = np.ascontiguousarray(X, dtype=float)
+    n, m = X.shape
+    K = bound.shape[1]
+    value = np.empty((n, K))
+    grad = np.empty((n, m, K)) if order >= 1 else np.empty((0, m, K))
+    hess = np.empty((n, m, m, K)) if order >= 2 else np.empty((0, m, m, K))
+    def part(rows):
+        _jit.evaluate(X[rows], tree, bound, order, value[rows], grad[rows] if order >= 1 else grad,
+                      hess[rows] if order >= 2 else hess, *_work(tree, K, m))
+
+    in_threads(part, n, PARALLEL_ROWS)
+    return value, (grad if order >= 1 else None), (hess if order >= 2 else None)
+
+
+def _work(tree, K, m):
+    """This thread's work arrays for ``tree`` and ``K`` targets (kept between calls)."""
+    cache = getattr(_local, "work", None)
+    if cache is None:
+        cache = _local.work = {}
+    key = (id(tree), K)
+    entry = cache.get(key)
+    if entry is None or entry[0] is not tree:
+        if len(cache) >= 16:
+            cache.clear()
+        entry = cache[key] = (tree, _compiled().work(tree, K, m))
+    return entry[1]
+
+
+_POOL = None
+
+
+def in_threads(part, n, minimum):
+    """``part(rows)`` over ``n`` rows: in one slice, or one slice per core from ``minimum`` rows.
+
+    The compiled kernels release the GIL, so threads run them in parallel
+    (no numba threading layer: nothing to go wrong in forked workers). At
+    most ``numba.get_num_threads()`` threads.
+    """
+    global _POOL
+    import numba
+
+    # numba's thread count (NUMBA_NUM_THREADS, numba.set_num_threads), all
+    # cores by default, is the knob users of numba know.
+    n_threads = min(numba.get_num_threads(), n // max(1, minimum))
+    if n_threads <= 1:
+        part(slice(0, n))
+        return
+    if _POOL is None:
+        from concurrent.futures import ThreadPoolExecutor
+
+        _POOL = ThreadPoolExecutor(os.cpu_count() or 1, thread_name_prefix="sk_hamiltonian")
+    bounds = np.linspace(0, n, n_threads + 1).astype(int)
+    futures = [_POOL.submit(part, slice(a, b)) for a, b in zip(bounds[:-1], bounds[1:])]
+    for future in futures:
+        future.result()

@@ -1,0 +1,206 @@
+"""The compiled (numba) contraction kernels; imported only when numba is.
+
+One state at a time, scalar loops: the factor tables of every variable
+(Legendre by its three-term recurrence, Fourier by cosines and sines), then
+the contraction of the coefficients along the prefix tree of the index set
+(see :mod:`sk_hamiltonian._space.contraction` for the idea): the leaves sum
+the last variable's table against each prefix's coefficients, and every level
+sums its nodes into their parents, carrying the value, the derivatives along
+the variables summed so far and (order 2) their second derivatives.
+
+A *tree* is the tuple built by :func:`.tree.tree_arrays`::
+
+    (family, degree, slope, offset, leaf_start, leaf_column, level_start,
+     level_parent, level_key, node_counts, width)
+
+and the coefficients are bound to it as a dense ``(width, K, n_prefixes)``
+array (:func:`sk_hamiltonian._kernels.bound_tree`). The carried derivatives
+of the nodes of a level are ``P = 1 + m + m * m`` rows of nodes: the value,
+``d/dx_i`` at ``1 + i`` and ``d2/dx_i dx_j`` (``i <= j``) at ``1 + m + i * m
++ j``.
+"""
+
+import math
+
+import numpy as np
+from numba import njit
+
+
+@njit(cache=True, nogil=True)
+def fill_tables(x, family, degree, slope, offset, order, T):
+    """``T[i, r, c]``: r-th derivative of column c of variable i's family at ``x[i]``."""
+    m = x.shape[0]
+    for i in range(m):
+        s = slope[i]
+        w = x[i] * s + offset[i]
+        n = degree[i]
+        if family[i] == 0:
+            T[i, 0, 0] = 1.0
+            if n >= 1:
+                T[i, 0, 1] = w
+            for k in range(1, n):
+                T[i, 0, k + 1] = ((2 * k + 1) / (k + 1)) * w * T[i, 0, k] - (k / (k + 1)) * T[i, 0, k - 1]
+            # P'_{k+1} = P'_{k-1} + (2k + 1) P_k, and the same one order up.
+            for r in range(1, order + 1):
+                T[i, r, 0] = 0.0
+                if n >= 1:
+                    T[i, r, 1] = 1.0 if r == 1 else 0.0
+                for k in range(1, n):
+                    T[i, r, k + 1] = T[i, r, k - 1] + (2 * k + 1) * T[i, r - 1, k]
+            for r in range(1, order + 1):
+                factor = s ** r
+                for k in range(n + 1):
+                    T[i, r, k] *= factor
+        else:
+            T[i, 0, 0] = 1.0
+            for r in range(1, order + 1):
+                T[i, r, 0] = 0.0
+            for k in range(1, n + 1):
+                angle = k * w
+                c = math.cos(angle)
+                sn = math.sin(angle)
+                T[i, 0, 2 * k - 1] = c
+                T[i, 0, 2 * k] = sn
+                if order >= 1:
+                    T[i, 1, 2 * k - 1] = -(k * sn) * s
+                    T[i, 1, 2 * k] = (k * c) * s
+                if order >= 2:
+                    T[i, 2, 2 * k - 1] = -(k * k * c) * (s * s)
+                    T[i, 2, 2 * k] = -(k * k * sn) * (s * s)
+
+
+@njit(cache=True, nogil=True)
+def contract_tables(T, tree, C, order, cur, nxt, pad):
+    """Contract the bound coefficients ``C`` with the tables ``T``; returns the root's results.
+
+    ``C`` is (width, K, n_prefixes): ``C[c, k, p]`` the coefficient for target
+    ``k`` of the function with prefix ``p`` and last column ``c``.
+    ``cur`` and ``nxt`` are work arrays of shape (P, K, max nodes) and
+    ``pad`` the levels' padded arrays (zero where no node); the result
+    is ``out[q, k]`` (pattern, target) of the root, a view of one of them.
+    Every inner loop runs over nodes (contiguous, independent sums), which
+    the compiler vectorizes; loops over each node's children would end in a
+    mispredicted branch every few terms.
+    """
+    level_start, level_parent, level_key, node_counts = tree[6], tree[7], tree[8], tree[9]
+    m = T.shape[0]
+    width, K, n_prefixes = C.shape
+    last = m - 1
+    rows = (0, 1 + last, 1 + m + last * m + last)
+    for r in range(order + 1):
+        for kk in range(K):
+            out = cur[rows[r], kk]
+            for p in range(n_prefixes):
+                out[p] = 0.0
+            for c in range(width):
+                t = T[last, r, c]
+                if t != 0.0:
+                    coef = C[c, kk]
+                    for p in range(n_prefixes):
+                        out[p] += coef[p] * t
+    # Level k (prefixes of length k, k = m - 1 .. 1) sums variable k - 1.
+    # Each carried row of nodes is scattered into the level's padded
+    # (column, parent) array, whose other entries stay zero for good; the
+    # sum over children is then a dense product over the parents, which the
+    # compiler vectorizes (a loop adding children into parents one by one
+    # waits on the previous addition to the same parent).
+    level_pos, pads = tree[11], pad
+    offset = 0
+    for L in range(m - 1):
+        k = m - 1 - L
+        v = k - 1
+        n_parents = node_counts[L + 1]
+        first, stop = level_start[L], level_start[L + 1]
+        pos = level_pos[first:stop]
+        level_pad = pads[offset : offset + width * n_parents]
+        offset += width * n_parents
+        for kk in range(K):
+            _scatter(cur[0, kk], level_pad, pos)
+            _dense_sum(level_pad, T[v, 0], nxt[0, kk], n_parents)
+            if order >= 1:
+                _dense_sum(level_pad, T[v, 1], nxt[1 + v, kk], n_parents)
+            if order >= 2:
+                _dense_sum(level_pad, T[v, 2], nxt[1 + m + v * m + v, kk], n_parents)
+            if order >= 1:
+                for j in range(k, m):
+                    _scatter(cur[1 + j, kk], level_pad, pos)
+                    _dense_sum(level_pad, T[v, 0], nxt[1 + j, kk], n_parents)
+                    if order >= 2:
+                        _dense_sum(level_pad, T[v, 1], nxt[1 + m + v * m + j, kk], n_parents)
+            if order >= 2:
+                for i in range(k, m):
+                    for j in range(i, m):
+                        q = 1 + m + i * m + j
+                        _scatter(cur[q, kk], level_pad, pos)
+                        _dense_sum(level_pad, T[v, 0], nxt[q, kk], n_parents)
+        cur, nxt = nxt, cur
+    return cur[:, :, 0]
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _scatter(row, pad, pos):
+    for n in range(pos.shape[0]):
+        pad[pos[n]] = row[n]
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _dense_sum(pad, table, out, n_parents):
+    """``out[p] = sum_c pad[c * n_parents + p] * table[c]``."""
+    for p in range(n_parents):
+        out[p] = 0.0
+    for c in range(table.shape[0]):
+        t = table[c]
+        if t != 0.0:
+            for p in range(n_parents):
+                out[p] += pad[c * n_parents + p] * t
+
+
+@njit(cache=True, nogil=True)
+def _work(tree, K, m):
+    width = tree[10]
+    size = 0
+    for count in tree[9]:
+        size = max(size, count)
+    P = 1 + m + m * m
+    n_pad = 0
+    for L in range(tree[9].shape[0] - 1):
+        n_pad += width * tree[9][L + 1]
+    # The tables and the padded arrays must start at zero (entries no state
+    # writes are read as zeros); the node rows are written before being read.
+    return (np.zeros((m, 3, width)), np.empty((P, K, size)), np.empty((P, K, size)),
+            np.zeros(n_pad))
+
+
+@njit(cache=True, nogil=True)
+def _store(root, s, order, m, value, grad, hess):
+    K = root.shape[1]
+    for kk in range(K):
+        value[s, kk] = root[0, kk]
+        if order >= 1:
+            for i in range(m):
+                grad[s, i, kk] = root[1 + i, kk]
+        if order >= 2:
+            for i in range(m):
+                for j in range(i, m):
+                    hess[s, i, j, kk] = root[1 + m + i * m + j, kk]
+                    hess[s, j, i, kk] = root[1 + m + i * m + j, kk]
+
+
+@njit(cache=True, nogil=True)
+def evaluate(X, tree, coef, order, value, grad, hess, T, cur, nxt, pad):
+    """Value (n, K), gradient (n, m, K) and Hessian (n, m, m, K) of ``coef`` at the rows of ``X``.
+
+    With the work arrays of :func:`work` (kept between calls: allocating
+    them costs more than contracting one state).
+    """
+    m = X.shape[1]
+    for s in range(X.shape[0]):
+        fill_tables(X[s], tree[0], tree[1], tree[2], tree[3], order, T)
+        root = contract_tables(T, tree, coef, order, cur, nxt, pad)
+        _store(root, s, order, m, value, grad, hess)
+
+
+@njit(cache=True, nogil=True)
+def work(tree, K, m):
+    """The work arrays of :func:`evaluate`."""
+    return _work(tree, K, m)

@@ -1,0 +1,110 @@
+"""When and how a simulation runs as one compiled loop (plain numpy until called).
+
+A model that can be simulated by the compiled path says so with a
+:class:`KernelModel` in its :class:`~sk_hamiltonian._integrate.Dynamics`
+(``Dynamics.compiled``); :func:`sk_hamiltonian._integrate.integrate` then
+hands the whole run to :func:`integrate_compiled` when the kernels switch
+allows numba and the integrator is one of the four known methods.
+"""
+
+import math
+
+import numpy as np
+
+from . import PARALLEL_ROWS, bound_tree, in_threads
+
+METHOD_CODES = {"rk4": 0, "avf": 1, "leapfrog": 2, "yoshida4": 2}
+
+
+class KernelModel:
+    """What a compiled simulation needs from a fitted model.
+
+    Parameters
+    ----------
+    kind : {"gradient", "value"}
+        ``"gradient"``: a Hamiltonian, ``f = (J^{-1} - Gamma) grad H`` with
+        ``H = sum_j coef[j] phi_j``; ``"value"``: a vector field, ``f_c =
+        sum_j coef[j, c] phi_j``.
+    space : ModelSpace
+        The basis the field is evaluated in.
+    coef : ndarray of shape (n_terms,) or (n_terms, n_states)
+        Its coefficients.
+    damping : ndarray of shape (n_states // 2,), default=None
+        Linear damping of a Hamiltonian model.
+    split : tuple, default=None
+        ``((kinetic_space, kinetic_coef), (potential_space, potential_coef))``
+        of a separable Hamiltonian, for the explicit symplectic methods.
+    """
+
+    def __init__(self, kind, space, coef, damping=None, split=None):
+        self.kind = kind
+        self.space = space
+        self.coef = coef
+        self.damping = damping
+        self.split = split
+
+
+def integrate_compiled(integrator, y0, t, max_step):
+    """:func:`sk_hamiltonian._integrate.integrate` in one compiled call, or None where it does not apply."""
+    from .._integrate import METHODS
+
+    model = integrator.dynamics.compiled
+    code = METHOD_CODES.get(integrator.name)
+    if code is None or type(integrator) is not METHODS.get(integrator.name):
+        return None  # a subclass, or a method of someone else's: its own steps
+    if code == 2 and model.split is None:
+        return None
+    from . import _simulate_jit
+
+    space = model.space
+    m = space.n_states
+    y0 = np.array(y0, dtype=float, order="C")
+    t = np.asarray(t, dtype=float)
+    n_times = t.shape[0]
+    substeps = max_step is not None and math.isfinite(max_step)
+    intervals = np.diff(t)
+    n_sub = np.array(
+        [max(1, math.ceil(dt / max_step - 1e-9)) if substeps else 1 for dt in intervals],
+        dtype=np.int64,
+    )
+    h = intervals / np.maximum(n_sub, 1) if n_times > 1 else np.zeros(0)
+    tree, C = bound_tree(space, model.coef)
+    if code == 2:
+        (kinetic, c_p), (potential, c_q) = model.split
+        tree, C = bound_tree(potential, c_q)
+        tree2, C2 = bound_tree(kinetic, c_p)
+        lf_weights = np.asarray(integrator.weights, dtype=float)
+    else:
+        tree2, C2, lf_weights = tree, C, np.zeros(0)
+    if code == 1:
+        nodes, weights = integrator.nodes, integrator.weights
+        rtol, max_iter = float(integrator.rtol), int(integrator.max_iter)
+    else:
+        nodes = weights = np.zeros(0)
+        rtol, max_iter = 0.0, 0
+    gamma = np.zeros(m // 2) if model.damping is None else np.asarray(model.damping, dtype=float)
+    wrap = integrator.dynamics.wrap is not None
+    periodic = space.periodic.copy() if wrap else np.zeros(m, dtype=bool)
+    low, high = space.domain[:, 0].copy(), space.domain[:, 1].copy()
+    kind = 0 if model.kind == "gradient" else 1
+    n_states = y0.shape[0]
+    parts = {}
+
+    def part(rows):
+        out = np.empty((n_times, rows.stop - rows.start, m))
+        failed_at = np.empty(rows.stop - rows.start, dtype=np.int64)
+        _simulate_jit.integrate(
+            code, kind, tree, C, tree2, C2, gamma, lf_weights, nodes, weights, rtol, max_iter,
+            periodic, low, high, np.ascontiguousarray(y0[rows]), n_sub, h, out, failed_at,
+        )
+        parts[rows.start] = (out, failed_at)
+
+    # Long runs of many states: one chunk of states per core (about
+    # PARALLEL_ROWS evaluations of the field per state and step make a chunk
+    # worth a thread).
+    n_steps = max(1, int(n_sub.sum()))
+    in_threads(part, n_states, max(1, -(-PARALLEL_ROWS * 64 // n_steps)))
+    starts = sorted(parts)
+    out = np.concatenate([parts[a][0] for a in starts], axis=1)
+    failed_at = np.concatenate([parts[a][1] for a in starts])
+    return out, failed_at.astype(np.intp)

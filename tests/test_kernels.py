@@ -1,0 +1,246 @@
+"""The compiled (numba) kernels against the numpy path, and the kernels switch."""
+
+import os
+
+import numpy as np
+import pytest
+
+import sk_hamiltonian
+from sk_hamiltonian import config_context, get_config, set_config
+from sk_hamiltonian._kernels import numba_available
+from sk_hamiltonian._space import ModelSpace, index_set
+
+# The process-wide default (SK_HAMILTONIAN_KERNELS may set it for a whole run).
+DEFAULT = get_config()["kernels"]
+
+needs_numba = pytest.mark.skipif(
+    not numba_available(), reason="numba is not installed (pip install sk_hamiltonian[fast])"
+)
+
+# (n_states, degree, periodic, constraints): every family and index-set kind.
+SPACES = [
+    (2, 6, [False, False], {}),
+    (4, 5, [False] * 4, {}),
+    (4, 4, [False, False, True, True], {}),
+    (2, 3, [True, True], {}),
+    (4, 6, [False, False, True, True], {"momentum_degree": 2}),
+    (6, 3, [False] * 6, {"separable": True, "max_interaction": 2}),
+    (1, 7, [False], {}),
+    (3, 4, [True, False, True], {"include_constant": True}),
+]
+
+
+def _space(n_states, degree, periodic, constraints):
+    domain = np.column_stack([-1.5 * np.ones(n_states), np.linspace(1.0, 2.0, n_states)])
+    powers = index_set(n_states, degree, periodic=np.array(periodic), **constraints)
+    return ModelSpace(domain, powers, np.array(periodic))
+
+
+def _states(space, n, seed=0):
+    rng = np.random.default_rng(seed)
+    low, high = space.domain.T
+    # Slightly beyond the box too: the compiled tables must extrapolate as numpy's do.
+    return rng.uniform(low - 0.1 * (high - low), high + 0.1 * (high - low), size=(n, space.n_states))
+
+
+def test_config_default_and_choices():
+    assert get_config() == {"kernels": DEFAULT}
+    assert DEFAULT == os.environ.get("SK_HAMILTONIAN_KERNELS", "auto")
+    with pytest.raises(ValueError, match="kernels must be one of"):
+        set_config(kernels="fortran")
+    with config_context(kernels="numpy"):
+        assert get_config()["kernels"] == "numpy"
+        with pytest.raises(ValueError, match="kernels must be one of"):
+            with config_context(kernels="cuda"):
+                pass  # pragma: no cover
+        assert get_config()["kernels"] == "numpy"
+    assert get_config()["kernels"] == DEFAULT
+    assert sk_hamiltonian.set_config is set_config
+
+
+def test_numba_choice_without_numba_says_how_to_install(monkeypatch):
+    monkeypatch.setattr(sk_hamiltonian._kernels, "_NUMBA", False)
+    with pytest.raises(ImportError, match=r"sk_hamiltonian\[fast\]"):
+        set_config(kernels="numba")
+    assert get_config()["kernels"] == DEFAULT
+    # "auto" then quietly means numpy.
+    from sk_hamiltonian._config import use_numba
+
+    assert not use_numba()
+
+
+def test_config_context_restores_on_error():
+    with pytest.raises(RuntimeError):
+        with config_context(kernels="numpy"):
+            raise RuntimeError("boom")
+    assert get_config()["kernels"] == DEFAULT
+
+
+@needs_numba
+@pytest.mark.parametrize("spec", SPACES, ids=lambda s: f"m{s[0]}n{s[1]}{s[3]}{sum(s[2])}p")
+# 600 samples: split between threads on a machine with two cores or more.
+@pytest.mark.parametrize("n_samples", [1, 5, 300, 600])
+def test_contractions_agree(spec, n_samples):
+    space = _space(*spec)
+    X = _states(space, n_samples)
+    rng = np.random.default_rng(1)
+    coef = rng.standard_normal(space.n_terms)
+    coef2 = rng.standard_normal((space.n_terms, 3))
+    results = {}
+    for kernels in ("numpy", "numba"):
+        with config_context(kernels=kernels):
+            results[kernels] = [
+                space.value_dot(X, coef), space.gradient_dot(X, coef), space.hessian_dot(X, coef),
+                space.value_dot(X, coef2), space.gradient_dot(X, coef2),
+            ]
+    for a, b in zip(results["numpy"], results["numba"]):
+        assert a.shape == b.shape
+        scale = np.abs(a).max()
+        np.testing.assert_allclose(b, a, rtol=0, atol=1e-12 * scale)
+
+
+@needs_numba
+def test_coefficients_changed_in_place_are_seen():
+    space = _space(*SPACES[1])
+    X = _states(space, 3)
+    coef = np.ones(space.n_terms)
+    with config_context(kernels="numba"):
+        first = space.gradient_dot(X, coef)
+        coef[5] = -4.0
+        second = space.gradient_dot(X, coef)
+    with config_context(kernels="numpy"):
+        expected = space.gradient_dot(X, coef)
+    assert not np.allclose(first, second)
+    np.testing.assert_allclose(second, expected, rtol=1e-12, atol=1e-12)
+
+
+def test_one_variable_results_outlive_the_next_call():
+    # The numpy contraction of a 1-D space once returned a view of its
+    # workspace, which the next call overwrote.
+    space = _space(*SPACES[6])
+    X = _states(space, 300)
+    coef = np.random.default_rng(1).standard_normal(space.n_terms)
+    with config_context(kernels="numpy"):
+        first = space.value_dot(X, coef)
+        kept = first.copy()
+        space.value_dot(X, 2 * coef)
+    np.testing.assert_array_equal(first, kept)
+    np.testing.assert_allclose(first, space.values(X) @ coef, rtol=1e-12, atol=1e-12)
+
+
+def _fitted(kind, periodic=False, damping=False, separable=False):
+    from sk_hamiltonian import HamiltonianRegressor, VectorFieldRegressor
+    from sk_hamiltonian.datasets import load_system
+
+    system = load_system("henon_heiles")
+    rng = np.random.default_rng(3)
+    X = rng.uniform(-0.5, 0.5, size=(400, 4))
+    dX = system.vector_field(X)
+    if damping:
+        dX[:, :2] -= 0.05 * dX[:, 2:]
+    domain = np.array([[-0.5, 0.5]] * 4)
+    if kind == "value":
+        return VectorFieldRegressor(degree=4, domain=domain).fit(X, dX)
+    params = dict(degree=5, domain=domain, damping=damping, separable=separable)
+    if periodic:
+        params.update(periodic=[False, False, True, True], domain=np.array([[-0.5, 0.5]] * 2 + [[-np.pi, np.pi]] * 2))
+    return HamiltonianRegressor(**params).fit(X, dX)
+
+
+MODELS = {
+    "hamiltonian": dict(kind="gradient"),
+    "damped": dict(kind="gradient", damping=True),
+    "separable": dict(kind="gradient", separable=True),
+    "periodic": dict(kind="gradient", periodic=True),
+    "vector_field": dict(kind="value"),
+}
+
+
+@needs_numba
+@pytest.mark.filterwarnings("ignore::sk_hamiltonian.DomainWarning")
+@pytest.mark.parametrize("name", list(MODELS))
+@pytest.mark.parametrize("method", ["rk4", "avf", "leapfrog", "yoshida4"])
+def test_simulations_agree(name, method):
+    model = _fitted(**MODELS[name])
+    if method in ("leapfrog", "yoshida4") and name != "separable":
+        with pytest.raises(ValueError, match="separable|damping"):
+            model.simulate([0.1, 0.0, 0.2, -0.1], np.linspace(0, 1, 3), method=method)
+        return
+    x0 = np.array([[0.1, 0.0, 0.2, -0.1], [0.0, 0.2, -0.1, 0.3], [0.05, -0.1, 0.0, 0.1]])
+    t = np.linspace(0, 3.0, 31)
+    paths = {}
+    for kernels in ("numpy", "numba"):
+        with config_context(kernels=kernels):
+            paths[kernels] = model.simulate(x0, t, method=method, max_step=0.05)
+    assert paths["numba"].shape == paths["numpy"].shape
+    np.testing.assert_allclose(paths["numba"], paths["numpy"], rtol=0, atol=1e-11)
+
+
+@needs_numba
+@pytest.mark.parametrize("method", ["rk4", "avf"])
+def test_compiled_failure_matches_numpy(method):
+    model = _fitted("gradient")
+    x0 = np.array([[0.1, 0.0, 0.2, -0.1], [40.0, 0.0, 0.0, 0.0]])
+    t = np.linspace(0, 50.0, 11)
+    results = {}
+    for kernels in ("numpy", "numba"):
+        with config_context(kernels=kernels):
+            with pytest.raises(sk_hamiltonian.SimulationError) as info:
+                model.simulate(x0, t, method=method, max_step=0.1)
+            with pytest.warns(sk_hamiltonian.DomainWarning):
+                paths = model.simulate(x0, t, method=method, max_step=0.1, on_failure="nan")
+            results[kernels] = (info.value.failed_at, paths)
+    np.testing.assert_array_equal(results["numba"][0], results["numpy"][0])
+    assert results["numba"][0][0] == t.size and results["numba"][0][1] < t.size
+    # NaN where the trajectory failed, the same states elsewhere.
+    np.testing.assert_allclose(results["numba"][1], results["numpy"][1], rtol=0, atol=1e-9)
+
+
+@needs_numba
+def test_compiled_simulation_does_not_step_in_python(monkeypatch):
+    from sk_hamiltonian._integrate import FixedStepIntegrator
+
+    model = _fitted("gradient")
+
+    def forbidden(self, y, h):
+        raise AssertionError("stepped in Python")
+
+    monkeypatch.setattr(FixedStepIntegrator, "step", forbidden)
+    with config_context(kernels="numba"):
+        path = model.simulate([0.1, 0.0, 0.2, -0.1], np.linspace(0, 1, 11), method="rk4")
+    assert np.isfinite(path).all()
+    with config_context(kernels="numpy"), pytest.raises(AssertionError, match="Python"):
+        model.simulate([0.1, 0.0, 0.2, -0.1], np.linspace(0, 1, 11), method="rk4")
+
+
+@needs_numba
+@pytest.mark.filterwarnings("ignore::sk_hamiltonian.DomainWarning")
+def test_many_initial_states_in_threads_agree():
+    # Enough states and steps to run in one thread per core.
+    model = _fitted("gradient", damping=True)
+    x0 = np.random.default_rng(5).uniform(-0.2, 0.2, size=(40, 4))
+    t = np.linspace(0, 20.0, 2001)
+    with config_context(kernels="numpy"):
+        expected = model.simulate(x0, t, method="rk4", max_step=0.01)
+    with config_context(kernels="numba"):
+        got = model.simulate(x0, t, method="rk4", max_step=0.01)
+    np.testing.assert_allclose(got, expected, rtol=0, atol=1e-10)
+
+
+def _blas_threads_now():
+    from threadpoolctl import threadpool_info
+
+    return [pool["num_threads"] for pool in threadpool_info() if pool["user_api"] == "blas"]
+
+
+def test_limit_blas_small_work_runs_on_one_thread():
+    from sk_hamiltonian._kernels import threads
+
+    before = _blas_threads_now()
+    with threads.limit_blas(threads.SERIAL_FLOPS / 10):
+        assert all(n == 1 for n in _blas_threads_now())
+    assert _blas_threads_now() == before
+    with threads.limit_blas(threads.SERIAL_FLOPS * 10):
+        assert _blas_threads_now() == before
+    assert threads.blas_threads(threads.SERIAL_FLOPS * 10) is None
+    assert threads.gram_flops(1000, 20) == 0.5 * 1000 * 20**2
