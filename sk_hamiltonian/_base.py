@@ -452,10 +452,15 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
             self._space = ModelSpace(self.domain_, self.powers_, self.periodic_)
         rows = self.support_ if self.support_.ndim == 1 else self.support_.any(axis=1)
         if rows.all():
-            self._eval_space, self._eval_coef = self._space, self.coef_
+            self._eval_space, self._eval_rows = self._space, None
         else:
             self._eval_space = ModelSpace(self.domain_, self.powers_[rows], self.periodic_)
-            self._eval_coef = self.coef_[rows]
+            self._eval_rows = rows
+
+    @property
+    def _eval_coef(self):
+        """Coefficients of the kept terms, read from ``coef_`` at each use (it may be set)."""
+        return self.coef_ if self._eval_rows is None else self.coef_[self._eval_rows]
 
     def _progress(self, message):
         """A progress callback printing ``message`` when ``verbose`` (None when silent)."""

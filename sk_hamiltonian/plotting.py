@@ -329,6 +329,7 @@ def plot_threshold_path(path, *, ax=None):
     Returns
     -------
     ax : matplotlib.axes.Axes
+        The axes drawn on.
 
     See Also
     --------
