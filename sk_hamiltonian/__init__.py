@@ -8,6 +8,7 @@ from ._derivatives import DerivativeTransformer
 from ._hamiltonian import HamiltonianRegressor
 from ._trajectories import unpack_derivatives
 from ._vector_field import VectorFieldRegressor
+from .io import ModelFileError, load, save
 from .exceptions import (
     ConservationWarning,
     DomainWarning,
@@ -24,8 +25,11 @@ __all__ = [
     "DomainWarning",
     "HamiltonianRegressor",
     "IllConditionedWarning",
+    "ModelFileError",
     "SimulationError",
     "SmoothingWarning",
     "VectorFieldRegressor",
+    "load",
+    "save",
     "unpack_derivatives",
 ]
