@@ -73,14 +73,17 @@ def decode(value, container, what):
         return value
     if isinstance(value, dict):
         keys = set(value)
-        if keys == {"float"} and value["float"] in SPECIAL_FLOATS:
+        if keys == {"float"} and isinstance(value["float"], str) and (
+            value["float"] in SPECIAL_FLOATS
+        ):
             return SPECIAL_FLOATS[value["float"]]
+        kind = value.get("as") if isinstance(value.get("as"), str) else None
         if keys == {"strings", "as"} and _is_string_list(value["strings"]):
-            if value["as"] == "ndarray":
+            if kind == "ndarray":
                 return np.array(value["strings"], dtype=object)
-            if value["as"] in ("list", "tuple"):
-                return CONTAINERS[value["as"]](np.array(value["strings"], dtype=object))
-        if keys == {"array", "shape", "dtype", "as"} and value["as"] in CONTAINERS:
+            if kind in ("list", "tuple"):
+                return CONTAINERS[kind](np.array(value["strings"], dtype=object))
+        if keys == {"array", "shape", "dtype", "as"} and kind in CONTAINERS:
             shape, dtype = value["shape"], value["dtype"]
             if not (
                 isinstance(shape, list) and len(shape) <= 8
@@ -99,7 +102,7 @@ def decode(value, container, what):
             if not isinstance(value["array"], str):
                 raise ModelFileError(f"{container.where}: {what} names no array member.")
             array = container.read_array(value["array"], shape, dtype)
-            return CONTAINERS[value["as"]](array)
+            return CONTAINERS[kind](array)
     raise ModelFileError(
         f"{container.where}: {what} holds {str(value)[:80]!r}, which is no value a model file "
         f"can hold; the file is corrupted or was not written by sk_hamiltonian.save."

@@ -11,6 +11,7 @@ import io
 import json
 import re
 import zipfile
+import zlib
 
 import numpy as np
 
@@ -76,7 +77,8 @@ class Container:
             raise ModelFileError(f"{where}: file not found.") from None
         except IsADirectoryError:
             raise ModelFileError(f"{where} is a directory, not a model file.") from None
-        except (zipfile.BadZipFile, OSError, EOFError, ValueError) as error:
+        except (zipfile.BadZipFile, OSError, EOFError, ValueError, NotImplementedError,
+                UnicodeDecodeError) as error:
             raise ModelFileError(
                 f"{where} is not a model file of sk_hamiltonian (not a readable zip archive: "
                 f"{error}). Model files are written by sk_hamiltonian.save; a truncated or "
@@ -152,7 +154,8 @@ class Container:
         try:
             with self.archive.open(info) as stream:
                 data = stream.read(info.file_size + 1)
-        except (zipfile.BadZipFile, OSError, EOFError, ValueError, NotImplementedError) as error:
+        except (zipfile.BadZipFile, zlib.error, OSError, EOFError, ValueError,
+                NotImplementedError) as error:
             self.fail(
                 f"member {name!r} cannot be read ({error}): the file is corrupted or "
                 f"truncated; fetch it again."
@@ -192,7 +195,7 @@ class Container:
                 header = np.lib.format.read_array_header_2_0(stream, max_header_size=10_000)
             else:
                 raise ValueError(f"unsupported .npy version {version}")
-        except (ValueError, SyntaxError, TypeError, EOFError) as error:
+        except Exception as error:  # numpy parses the header as a Python literal
             self.fail(f"array {name!r} has no valid .npy header ({error}); the file is corrupted.")
         found_shape, fortran, found_dtype = header
         if found_dtype.hasobject or found_dtype.kind not in ARRAY_KINDS or found_dtype.fields:

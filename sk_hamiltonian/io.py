@@ -158,7 +158,7 @@ def _spec(obj, encoder, what):
         }
     if type(obj).__name__ not in ESTIMATORS or ESTIMATORS[type(obj).__name__] is not type(obj):
         hint = ""
-        if hasattr(obj, "best_estimator_"):
+        if hasattr(obj, "best_estimator_") or type(obj).__name__.endswith("SearchCV"):
             hint = (
                 " For a search, save its best_estimator_ and put what was chosen in "
                 "provenance, e.g. provenance={'cv': str(search.best_params_)}."
@@ -228,7 +228,18 @@ def load(path):
     where = _name(path)
     with Container(path, where) as container:
         manifest = _checked_manifest(container)
-        return _build(manifest["model"], container, "the model", 0)
+        try:
+            return _build(manifest["model"], container, "the model", 0)
+        except ModelFileError:
+            raise
+        except Exception as error:
+            # A safety net: every failure the checks foresee has its own
+            # message; this one keeps an unforeseen one to a line as well.
+            raise ModelFileError(
+                f"{where}: unexpected {type(error).__name__} while building the model "
+                f"({str(error)[:200]}); the file is corrupted or was not written by "
+                f"sk_hamiltonian.save."
+            ) from None
 
 
 def read_manifest(path):
