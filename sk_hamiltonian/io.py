@@ -52,11 +52,20 @@ ESTIMATORS = {
     cls.__name__: cls
     for cls in (HamiltonianRegressor, VectorFieldRegressor, DerivativeTransformer)
 }
-#: Names of this package's types for ``skops.io.load(..., trusted=SKOPS_TRUSTED)``.
+#: Names of this package's types for ``skops.io.load(..., trusted=SKOPS_TRUSTED)``:
+#: the estimators, and the data classes and basis functions of their model
+#: space, which skops stores with them (it saves the private state too).
 SKOPS_TRUSTED = [
+    "sk_hamiltonian._derivatives.DerivativeTransformer",
     "sk_hamiltonian._hamiltonian.HamiltonianRegressor",
     "sk_hamiltonian._vector_field.VectorFieldRegressor",
-    "sk_hamiltonian._derivatives.DerivativeTransformer",
+    "sk_hamiltonian._space.contraction.ContractionPlan",
+    "sk_hamiltonian._space.space.ModelSpace",
+    "sk_hamiltonian._space.tables.FactorTables",
+    "sk_hamiltonian._space.tables._fourier",
+    "sk_hamiltonian._space.tables._legendre",
+    "sk_hamiltonian._space.tensor.SlotLayout",
+    "sk_hamiltonian._space.trie.Level",
 ]
 # Pipelines inside pipelines: a few levels are plenty.
 MAX_NESTING = 4

@@ -222,3 +222,24 @@ def test_missing_file_and_directory(tmp_path):
         load(tmp_path / "absent.skh")
     with pytest.raises(ModelFileError, match="is a directory"):
         load(tmp_path)
+
+
+def test_skops_round_trip_with_our_types_trusted(tmp_path, two_dof):
+    sio = pytest.importorskip("skops.io")
+    from sk_hamiltonian.io import SKOPS_TRUSTED
+
+    for estimator in (HamiltonianRegressor(3, separable=True, damping=True),
+                      VectorFieldRegressor(3, periodic=[False, False, True, True])):
+        pipe = fitted(make_pipeline(DerivativeTransformer(dt=0.02), estimator), two_dof)
+        pipe[-1].simulate(two_dof[0, 0], [0.0, 0.1])  # builds the cached contraction plans
+        path = tmp_path / "model.skops"
+        sio.dump(pipe, path)
+        untrusted = sio.get_untrusted_types(file=path)
+        assert set(untrusted) <= set(SKOPS_TRUSTED), set(untrusted) - set(SKOPS_TRUSTED)
+        with pytest.raises(Exception, match="[Uu]ntrusted"):
+            sio.load(path)  # skops refuses our types unless they are trusted
+        loaded = sio.load(path, trusted=SKOPS_TRUSTED)
+        t = np.linspace(0, 1, 11)
+        assert np.array_equal(pipe.predict(two_dof[:3]), loaded.predict(two_dof[:3]))
+        assert np.array_equal(pipe[-1].simulate(two_dof[0, 0], t),
+                              loaded[-1].simulate(two_dof[0, 0], t))
