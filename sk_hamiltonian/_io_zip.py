@@ -38,12 +38,8 @@ class ModelFileError(ValueError):
 
     Raised by :func:`sk_hamiltonian.io.load` (and
     :func:`sk_hamiltonian.io.read_manifest`) with a message naming the file,
-    the problem and what to do; nothing in the file is executed.
-
-    Parameters
-    ----------
-    message : str
-        The problem and what to do.
+    the problem and what to do; nothing in the file is executed. A
+    subclass of :class:`ValueError`.
     """
 
 

@@ -243,3 +243,15 @@ def test_skops_round_trip_with_our_types_trusted(tmp_path, two_dof):
         assert np.array_equal(pipe.predict(two_dof[:3]), loaded.predict(two_dof[:3]))
         assert np.array_equal(pipe[-1].simulate(two_dof[0, 0], t),
                               loaded[-1].simulate(two_dof[0, 0], t))
+
+
+def test_derivative_transformer_refuses_dataframe_output_clearly():
+    transformer = DerivativeTransformer()
+    assert transformer.set_output(transform="default") is transformer
+    assert transformer.set_output() is transformer
+    for kind in ("pandas", "polars"):
+        with pytest.raises(ValueError, match="derivative layout.*unpack_derivatives"):
+            transformer.set_output(transform=kind)
+    pipe = make_pipeline(DerivativeTransformer(dt=0.1), HamiltonianRegressor())
+    with pytest.raises(ValueError, match="DerivativeTransformer cannot output 'pandas'"):
+        pipe.set_output(transform="pandas")
