@@ -187,7 +187,7 @@ def test_wrong_types_anywhere_in_the_manifest(valid, choice, replacement):
         ("solver", "pickle", "invalid parameter"),
         ("fit_on", None, "invalid parameter"),
         ("__class__", "x", "unknown to this sk_hamiltonian"),
-        ("memory", "/tmp", "unknown to this sk_hamiltonian"),
+        ("memory", "cache_dir", "unknown to this sk_hamiltonian"),
     ],
 )
 def test_parameters_go_through_the_estimators_constraints(valid, key, value, match):

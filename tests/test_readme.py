@@ -76,3 +76,25 @@ def test_ci_runs_the_readme_test_command():
     test_command = code_blocks("bash")[1].strip().split("&&")[-1].strip()
     assert test_command.endswith("python -m pytest")
     assert "python -m pytest" in CI.read_text()
+
+
+def test_no_path_outside_the_repository_is_committed():
+    # Machine paths (home and work directories, temporary folders, files beside
+    # the checkout) mean nothing in another checkout; state the fact instead.
+    listing = subprocess.run(["git", "ls-files"], cwd=ROOT, capture_output=True, text=True)
+    if listing.returncode != 0:
+        pytest.skip("not a git checkout")
+    pattern = re.compile("|".join(["/" + "work/", r"\.\./" + "shared", "/" + "home/",
+                                   "/" + "root/", "/" + "tmp/"]))
+    found = []
+    for name in listing.stdout.splitlines():
+        path = ROOT / name
+        if not path.is_file() or path.suffix in {".png", ".npz", ".npy", ".inv", ".pickle"}:
+            continue
+        try:
+            text = path.read_text(encoding="utf-8")
+        except UnicodeDecodeError:
+            continue
+        found += [f"{name}:{i}" for i, line in enumerate(text.splitlines(), 1)
+                  if pattern.search(line)]
+    assert not found, found
