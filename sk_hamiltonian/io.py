@@ -37,7 +37,6 @@ from ._io_schema import (
     decode,
 )
 from ._io_zip import Container, ModelFileError, write_container
-from ._space import ModelSpace
 from ._vector_field import VectorFieldRegressor
 
 __all__ = ["ModelFileError", "load", "read_manifest", "save", "SKOPS_TRUSTED"]
@@ -371,6 +370,10 @@ def _build(spec, container, what, depth):
         required = REGRESSOR_REQUIRED + (("damping_",) if cls is HamiltonianRegressor else ())
         check_attributes(where, name, attributes, REGRESSOR_ATTRIBUTES, required)
         check_regressor(where, est, attributes)
+    if cls is not DerivativeTransformer and "support_" not in attributes:
+        # Written before thresholds existed: every term was kept.
+        coef = attributes["coef_"]
+        attributes["support_"] = np.ones(coef.shape if coef.ndim == 2 else coef.shape[:1], bool)
     for key, value in attributes.items():
         setattr(est, key, value)
     if cls is not DerivativeTransformer:
@@ -423,13 +426,7 @@ def _values(encoded, container, what, fitted):
 def _rebuild(est, container, what):
     """Recompute the private state (model space, separable parts) from the public."""
     try:
-        if hasattr(est, "_rebuild_fitted"):
-            est._rebuild_fitted()
-        else:
-            est._space = ModelSpace(est.domain_, est.powers_, est.periodic_)
-            est._split = (
-                est._separable_parts() if est.separable and hasattr(est, "damping_") else None
-            )
+        est._rebuild_fitted()
         est._partial = None
         # A last check that the parts fit together: the field at the box centre.
         value = est._vector_field(est.domain_.mean(axis=1)[None])

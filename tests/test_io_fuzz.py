@@ -253,6 +253,8 @@ def swap_array(valid, attribute, array):
         ("damping_", np.zeros(2), r"damping_ has shape \(2,\)"),
         ("periodic_", np.array([True, False]), "periodic_ differs from the periodic parameter"),
         ("state_scale_", np.array([1.0, 0.0]), "positive floats"),
+        ("support_", np.ones(3, dtype=bool), r"support_ has shape \(3,\), expected \(9,\)"),
+        ("support_", np.ones(9), "support_ must be a boolean array"),
     ],
 )
 def test_inconsistent_arrays_are_refused(valid, attribute, array, match):
@@ -394,3 +396,15 @@ def test_vector_field_and_transformer_checks(tmp_path):
         manifest["model"]["fitted"]["window_"] = 7
 
     refused(with_manifest(buffer.getvalue(), window), "window_=7 disagrees")
+
+
+def test_a_file_without_support_keeps_every_term(valid):
+    # Files written before thresholds existed have no support_: all terms kept.
+    def drop(manifest):
+        del regressor_spec(manifest)["fitted"]["support_"]
+
+    model = load(io.BytesIO(with_manifest(valid, drop)))
+    reference = load(io.BytesIO(valid))
+    assert model[-1].support_.all() and model[-1].support_.shape == (9,)
+    X = reference[-1].domain_.mean(axis=1)[None]
+    assert np.array_equal(model[-1].predict(X), reference[-1].predict(X))
