@@ -32,6 +32,9 @@ DEFAULT_DENOISE, DEFAULT_DEGREES = ["fd", "3", "5", "8"], [4, 6, 8, 10]
 QUICK_DENOISE, QUICK_DEGREES = ["fd", "5"], [4, 6]
 Q_KEY, N_KEY = "derivativetransformer__degree", "hamiltonianregressor__degree"
 METHOD_KEY = "derivativetransformer__method"
+THRESHOLD_KEY = "hamiltonianregressor__threshold"
+# Sparsity thresholds searched with --threshold auto (0: the dense fit).
+AUTO_THRESHOLDS = [0.0, 1e-3, 1e-2, 3e-2, 0.1]
 # Fewest samples a trajectory needs for any derivative estimate.
 MIN_SAMPLES = 3
 # Segments of a record too long to cross-validate whole: the paper's
@@ -170,6 +173,13 @@ def build_parser():
         "--damping", action="store_true",
         help="fit linear friction with H~ (HamiltonianRegressor(damping=True)), for data "
         "that lose energy",
+    )
+    parser.add_argument(
+        "--threshold", default="0", metavar="VALUE|auto",
+        help="sparsity threshold of H~ (HamiltonianRegressor(threshold=...)): terms of the "
+        "readable form below VALUE times the largest are dropped; 'auto' adds "
+        + ", ".join(f"{v:g}" for v in AUTO_THRESHOLDS) + " to the search grid (default: "
+        "%(default)s, every term kept)",
     )
     parser.add_argument(
         "--joblib", action="store_true",
@@ -324,6 +334,7 @@ def _check_positive(option, value):
 
 
 def _check_options(args):
+    _parse_threshold(args.threshold)
     if args.cv < 2:
         raise UsageError(f"--cv must be at least 2; got {args.cv}")
     if args.segment_length is not None and args.segment_length < MIN_SAMPLES:
@@ -465,6 +476,21 @@ def _parse_denoise(values):
     return list(dict.fromkeys(out))
 
 
+def _parse_threshold(value):
+    if value.strip().lower() == "auto":
+        return list(AUTO_THRESHOLDS)
+    try:
+        threshold = float(value)
+    except ValueError:
+        raise UsageError(f"--threshold: {value!r} is neither a number nor 'auto'") from None
+    if not (math.isfinite(threshold) and 0 <= threshold < 1):
+        raise UsageError(
+            f"--threshold must be 'auto' or a number in [0, 1), a fraction of the largest "
+            f"term; got {value}"
+        )
+    return [threshold]
+
+
 def _grid(args, data):
     """Candidate parameters, keeping only those the data can support."""
     X, n_states = data.X, len(data.names)
@@ -506,15 +532,20 @@ def _grid(args, data):
     Qs = [Q for Q in denoise if Q != "fd"]
     if Qs:
         grid.append({METHOD_KEY: ["polynomial"], Q_KEY: Qs, N_KEY: degrees})
+    thresholds = _parse_threshold(args.threshold)
+    if thresholds != [0.0]:  # the default grid stays today's
+        for entry in grid:
+            entry[THRESHOLD_KEY] = thresholds
     return grid
 
 
 def _describe(params):
     if hasattr(params, "get_params"):
         params = params.get_params()
+    sparse = f", threshold={params[THRESHOLD_KEY]:g}" if params.get(THRESHOLD_KEY) else ""
     if params[METHOD_KEY] == "finite_difference":
-        return f"finite differences, n={params[N_KEY]}"
-    return f"Q={params[Q_KEY]}, n={params[N_KEY]}"
+        return f"finite differences, n={params[N_KEY]}{sparse}"
+    return f"Q={params[Q_KEY]}, n={params[N_KEY]}{sparse}"
 
 
 class _ProgressScorer:

@@ -233,7 +233,7 @@ def test_help_documents_the_options(capsys):
     assert exit_info.value.code == 0
     out = capsys.readouterr().out
     for option in ("--dt", "--output", "--degrees", "--denoise-degrees", "--cv", "--horizon",
-                   "--seed", "--damping", "--joblib", ".npz", ".csv", "model.skh", "model.joblib",
+                   "--seed", "--damping", "--threshold", "--joblib", ".npz", ".csv", "model.skh", "model.joblib",
                    "runs any code", "report.png", "exit status", "show MODEL",
                    "simulate MODEL"):
         assert option in out
@@ -616,3 +616,28 @@ def test_a_ragged_or_non_numeric_csv_names_the_line(tmp_path, capsys, rows, mess
     path.write_text("trajectory,p,q\n" + rows)
     line = error_of([str(path), "--dt", "0.1"], capsys)
     assert message in line and "usecols" not in line
+
+
+def test_threshold_option(tmp_path, capsys, pendulum_data):
+    path = tmp_path / "runs.npz"
+    np.savez(path, trajectories=pendulum_data)
+    base = [str(path), "--dt", "0.02", "--output", str(tmp_path), "--degrees", "6",
+            "--denoise-degrees", "fd", "--horizon", "1"]
+    status, out, err = run(base + ["--threshold", "auto"], capsys)
+    assert status == 0
+    assert "search: 5 candidates" in out
+    described = re.findall(r"finite differences, n=6(, threshold=\S+)?\s+score", err)
+    assert described == ["", ", threshold=0.001", ", threshold=0.01", ", threshold=0.03",
+                         ", threshold=0.1"]
+    model = load(tmp_path / "model.skh")
+    chosen = re.search(r"chosen: finite differences, n=6(?:, threshold=(\S+))? -> (\d+) terms",
+                       out)
+    assert model[-1].threshold == float(chosen.group(1) or 0)
+    assert model[-1].n_terms_ == int(chosen.group(2))
+    status, out, _ = run(base + ["--threshold", "0.03"], capsys)
+    assert status == 0 and load(tmp_path / "model.skh")[-1].threshold == 0.03
+    learned = re.search(r"^learned: H~ = (.*) \+ const$", out, re.M).group(1)
+    # The sparse fit prints fewer terms than the dense 27 (no '...' summary).
+    assert "smaller terms" not in learned
+    for bad in ("x", "-1", "nan", "2"):
+        assert "--threshold" in error_of(base + ["--threshold", bad], capsys)
