@@ -42,8 +42,10 @@ def show_parser():
         prog="sk-hamiltonian show", description=SHOW_DESCRIPTION,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    parser.add_argument("model", metavar="MODEL", help="a model file (.skh) written by the command "
-                        "or by sk_hamiltonian.save")
+    parser.add_argument(
+        "model", metavar="MODEL",
+        help="a model file (.skh) written by the command or by sk_hamiltonian.save",
+    )
     return parser
 
 
@@ -120,7 +122,8 @@ def _non_default_params(estimator):
             not isinstance(value, (list, tuple, np.ndarray)) and value == default
         )
         if not same:
-            shown.append(f"{key}={np.asarray(value).tolist() if hasattr(value, 'shape') else value!r}")
+            text = np.asarray(value).tolist() if hasattr(value, "shape") else repr(value)
+            shown.append(f"{key}={text}")
     return f"{type(estimator).__name__}({', '.join(shown)})"
 
 

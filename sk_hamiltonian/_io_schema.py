@@ -228,7 +228,8 @@ def check_regressor(where, est, attributes):
         need(coef.shape == (n_basis,), f"coef_ has shape {coef.shape}, expected ({n_basis},)")
         need("damping_" in attributes, "damping_ is missing")
         damping = attributes["damping_"]
-        need(damping.shape == (n // 2,), f"damping_ has shape {damping.shape}, expected ({n // 2},)")
+        need(damping.shape == (n // 2,),
+             f"damping_ has shape {damping.shape}, expected ({n // 2},)")
         need(est.damping or not damping.any(), "damping_ is non-zero with damping=False")
         support_shape = (n_basis,)
     else:

@@ -183,7 +183,9 @@ def _spec(obj, encoder, what):
     return {
         "class": type(obj).__name__,
         "params": {k: encoder.encode(v, f"parameter {what}.{k}") for k, v in params.items()},
-        "fitted": {k: encoder.encode(v, f"fitted attribute {what}.{k}") for k, v in fitted.items()},
+        "fitted": {
+            k: encoder.encode(v, f"fitted attribute {what}.{k}") for k, v in fitted.items()
+        },
         "private": {k: encoder.encode(v, f"state {what}.{k}") for k, v in private.items()},
     }
 
@@ -294,8 +296,10 @@ def read_manifest(path):
 
 
 def _name(path):
-    return repr(str(path)) if isinstance(path, (str, bytes)) or hasattr(path, "__fspath__") else (
-        "the model file")
+    """How messages name the file: its path, or "the model file" for a file object."""
+    if isinstance(path, (str, bytes)) or hasattr(path, "__fspath__"):
+        return repr(str(path))
+    return "the model file"
 
 
 def _checked_manifest(container):
@@ -419,7 +423,8 @@ def _values(encoded, container, what, fitted):
             )
         if not fitted and key not in PRIVATE_STATE:
             container.fail(f"{what} has private state {str(key)[:40]!r}, which is not allowed.")
-        out[key] = decode(value, container, f"{'attribute' if fitted else 'state'} {key} of {what}")
+        kind = "attribute" if fitted else "state"
+        out[key] = decode(value, container, f"{kind} {key} of {what}")
     return out
 
 

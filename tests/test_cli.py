@@ -233,7 +233,8 @@ def test_help_documents_the_options(capsys):
     assert exit_info.value.code == 0
     out = capsys.readouterr().out
     for option in ("--dt", "--output", "--degrees", "--denoise-degrees", "--cv", "--horizon",
-                   "--seed", "--damping", "--threshold", "--joblib", ".npz", ".csv", "model.skh", "model.joblib",
+                   "--seed", "--damping", "--threshold", "--joblib", ".npz", ".csv", "model.skh",
+                   "model.joblib",
                    "runs any code", "report.png", "exit status", "show MODEL",
                    "simulate MODEL"):
         assert option in out
@@ -539,7 +540,8 @@ def test_simulate_refuses_states_outside_the_domain_unless_asked(demo, tmp_path,
     argv = ["simulate", model_path, "--x0", f"{high + 1}", "0", "--t-end", "0.1",
             "-o", str(tmp_path / "x.csv")]
     line = error_of(argv, capsys)
-    assert f"p = {high + 1:g} lies outside the model's domain (p in [{low:.6g}, {high:.6g}]" in line
+    domain = f"(p in [{low:.6g}, {high:.6g}]"
+    assert f"p = {high + 1:g} lies outside the model's domain {domain}" in line
     assert "--allow-outside" in line and not (tmp_path / "x.csv").exists()
     status, out, _ = run(argv + ["--allow-outside"], capsys)
     assert status == 0 and (tmp_path / "x.csv").exists()
@@ -548,10 +550,12 @@ def test_simulate_refuses_states_outside_the_domain_unless_asked(demo, tmp_path,
 @pytest.mark.parametrize(
     "extra,message",
     [
-        (["--x0", "1", "--t-end", "1"], r"--x0 needs 2 values \(p, q\), one per state variable; got 1"),
+        (["--x0", "1", "--t-end", "1"],
+         r"--x0 needs 2 values \(p, q\), one per state variable; got 1"),
         (["--x0", "0", "0", "--t-end", "-1"], "--t-end must be a positive finite number"),
         (["--x0", "0", "0", "--t-end", "1", "--dt", "nan"], "--dt must be a positive finite"),
-        (["--x0", "0", "0", "--t-end", "1", "--method", "leapfrog"], "cannot simulate: .*separable"),
+        (["--x0", "0", "0", "--t-end", "1", "--method", "leapfrog"],
+         "cannot simulate: .*separable"),
     ],
 )
 def test_simulate_usage_errors(demo, tmp_path, capsys, extra, message):
