@@ -114,6 +114,19 @@ def test_hamiltonian_round_trip_is_exact(tmp_path, pendulum, space, damping):
     assert loaded.get_params()["hamiltonianregressor__damping"] is damping
 
 
+@pytest.mark.parametrize("space", SPACES, ids=lambda s: ",".join(map(str, s)))
+def test_vector_field_round_trip_is_exact(tmp_path, pendulum, space):
+    pipe = fitted(
+        make_pipeline(DerivativeTransformer(dt=0.02, method="finite_difference"),
+                      VectorFieldRegressor(**space)), pendulum,
+    )
+    loaded = round_trip(pipe, tmp_path)
+    assert_same_behaviour(pipe[-1], loaded[-1], pendulum, pendulum[0, 0], ["rk4", "avf"])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # the explicit domain is smaller than the data
+        assert pipe.score(pendulum[:4]) == loaded.score(pendulum[:4])
+
+
 @pytest.mark.parametrize("threshold", [0.0, 0.05])
 @pytest.mark.parametrize("fit_on", ["derivatives", "steps"])
 @pytest.mark.parametrize("cls", [HamiltonianRegressor, VectorFieldRegressor])
