@@ -36,7 +36,7 @@ ARRAY_KINDS = "biuf"
 class ModelFileError(ValueError):
     """A model file is malformed, unsafe, or from an incompatible version.
 
-    Raised by :func:`sk_hamiltonian.io.load` (and
+    Raised by :func:`sk_hamiltonian.load` (and
     :func:`sk_hamiltonian.io.read_manifest`) with a message naming the file,
     the problem and what to do; nothing in the file is executed. A
     subclass of :class:`ValueError`.

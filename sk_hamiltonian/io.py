@@ -100,8 +100,8 @@ def save(obj, path, *, provenance=None):
 
     See Also
     --------
-    load : Read the file back, checking everything.
-    read_manifest : The manifest alone (versions, classes, provenance).
+    sk_hamiltonian.load : Read the file back, checking everything.
+    sk_hamiltonian.io.read_manifest : The manifest alone (versions, classes, provenance).
 
     Examples
     --------
@@ -191,7 +191,7 @@ def _spec(obj, encoder, what):
 
 
 def load(path):
-    """Load a model saved by :func:`save`, checking every part of the file first.
+    """Load a model saved by :func:`sk_hamiltonian.save`, checking every part of the file first.
 
     Nothing in the file is executed: arrays are read with
     ``allow_pickle=False``, only the estimator classes of this package (and
@@ -202,7 +202,7 @@ def load(path):
     Parameters
     ----------
     path : str or path-like or file object
-        A file written by :func:`save`.
+        A file written by :func:`sk_hamiltonian.save`.
 
     Returns
     -------
@@ -221,8 +221,8 @@ def load(path):
 
     See Also
     --------
-    save : Write a model file.
-    read_manifest : The manifest alone (versions, classes, provenance).
+    sk_hamiltonian.save : Write a model file.
+    sk_hamiltonian.io.read_manifest : The manifest alone (versions, classes, provenance).
 
     Examples
     --------
@@ -255,13 +255,13 @@ def load(path):
 def read_manifest(path):
     """The manifest of a model file: versions, time of saving, provenance and the model's parts.
 
-    The container and versions are checked as by :func:`load`; arrays are
+    The container and versions are checked as by :func:`sk_hamiltonian.load`; arrays are
     not read, and no estimator is constructed.
 
     Parameters
     ----------
     path : str or path-like or file object
-        A file written by :func:`save`.
+        A file written by :func:`sk_hamiltonian.save`.
 
     Returns
     -------
@@ -274,11 +274,11 @@ def read_manifest(path):
     Raises
     ------
     ModelFileError
-        As :func:`load`, for the container and the versions.
+        As :func:`sk_hamiltonian.load`, for the container and the versions.
 
     See Also
     --------
-    load : The model itself.
+    sk_hamiltonian.load : The model itself.
 
     Examples
     --------
