@@ -10,13 +10,13 @@ gave them, times ``cos(k w x)`` and ``sin(k w x)`` for periodic variables
 """
 
 from collections import namedtuple
-from itertools import product
 
 import numpy as np
-from numpy.polynomial import Legendre, Polynomial
 from sklearn.utils.validation import check_is_fitted
 
-__all__ = ["HamiltonianTerm", "format_hamiltonian", "hamiltonian_terms"]
+from ._space.readable import ReadableBasis
+
+__all__ = ["HamiltonianTerm", "format_hamiltonian", "hamiltonian_terms", "to_sympy"]
 
 HamiltonianTerm = namedtuple("HamiltonianTerm", ["coefficient", "powers", "text", "size"])
 HamiltonianTerm.__doc__ = """One term of a learned Hamiltonian in the user's coordinates.
@@ -36,44 +36,6 @@ size : float
     that variable over the training states (trigonometric factors count 1).
     The ranking key.
 """
-
-
-def _legendre_to_monomials(degree, low, high):
-    """``M[k, e]``: coefficient of ``x**e`` in ``P_k`` of the mapped coordinate."""
-    a, b = 2.0 / (high - low), -(high + low) / (high - low)
-    window = Polynomial([b, a])
-    M = np.zeros((degree + 1, degree + 1))
-    for k in range(degree + 1):
-        c = Legendre.basis(k).convert(kind=Polynomial)(window).coef
-        M[k, : c.size] = c
-    return M
-
-
-def _variable_expansions(model):
-    """Per variable: a function mapping a table entry to ``[(readable power, coefficient)]``."""
-    expansions = []
-    for i, (low, high) in enumerate(model.domain_):
-        if model.periodic_[i]:
-            omega = 2 * np.pi / (high - low)
-
-            def expand(power, omega=omega, low=low):
-                k = abs(int(power))
-                if k == 0:
-                    return [(0, 1.0)]
-                c, s = np.cos(k * omega * low), np.sin(k * omega * low)
-                # cos(k w (x - low)) and sin(k w (x - low)) by angle addition.
-                if power > 0:
-                    return [(k, c), (-k, s)]
-                return [(-k, c), (k, -s)]
-        else:
-            degree = int(np.abs(model.powers_[:, i]).max(initial=0))
-            M = _legendre_to_monomials(degree, low, high)
-
-            def expand(power, M=M):
-                row = M[int(power)]
-                return [(e, float(row[e])) for e in np.flatnonzero(row)]
-        expansions.append(expand)
-    return expansions
 
 
 def _factor_size(power, magnitude, periodic):
@@ -161,22 +123,11 @@ def hamiltonian_terms(model, *, state_names=None, rtol=1e-9):
             f"state_names must have one name per state variable ({n_states}); got "
             f"{len(state_names)}."
         )
-    expansions = _variable_expansions(model)
-    powers, values = [], []
-    cache = [{} for _ in range(n_states)]
-    for alpha, c in zip(model.powers_, np.ravel(model.coef_)):
-        factors = []
-        for i, a in enumerate(alpha):
-            if a not in cache[i]:
-                cache[i][a] = expansions[i](a)
-            factors.append(cache[i][a])
-        for combo in product(*factors):
-            powers.append(tuple(p for p, _ in combo))
-            values.append(c * np.prod([v for _, v in combo]))
-    if not powers:
-        return []
-    unique, inverse = np.unique(np.array(powers), axis=0, return_inverse=True)
-    coef = np.bincount(inverse.ravel(), weights=np.array(values), minlength=unique.shape[0])
+    unique = np.asarray(model.powers_)
+    # Readable coefficients of every output (one for H~), by the change of basis.
+    coef = ReadableBasis(unique, model.domain_, model.periodic_).from_fitting @ np.ravel(
+        model.coef_
+    )
     low, high = model.domain_[:, 0], model.domain_[:, 1]
     magnitude = model._state_magnitude
     scale = np.array([
@@ -186,6 +137,8 @@ def hamiltonian_terms(model, *, state_names=None, rtol=1e-9):
     size = np.abs(coef) * scale
     nonconstant = np.any(unique != 0, axis=1)
     largest = size[nonconstant].max(initial=0.0)
+    if largest == 0:
+        return []
     keep = nonconstant & (size > rtol * largest)
     omega = 2 * np.pi / (high - low)
     terms = []
@@ -249,3 +202,80 @@ def format_hamiltonian(model, *, state_names=None, max_terms=8):
             f" + ... ({len(rest)} smaller terms, each below {100 * share:.2g}% of the largest)"
         )
     return "H~ = " + text + " + const"
+
+
+def to_sympy(model, *, state_names=None, rtol=1e-9):
+    """The learned ``H~`` as a sympy expression in the user's coordinates.
+
+    The terms of :func:`hamiltonian_terms` summed: monomials of the ordinary
+    variables times ``cos``/``sin`` of the periodic ones, with float
+    coefficients and without the constant. Needs sympy (the ``symbolic``
+    extra: ``pip install "sk_hamiltonian[symbolic]"``); the package does not
+    depend on it otherwise.
+
+    Parameters
+    ----------
+    model : HamiltonianRegressor
+        A fitted model.
+    state_names : list of str, default=None
+        Names of the symbols, as in :func:`hamiltonian_terms`.
+    rtol : float, default=1e-9
+        Terms smaller than this fraction of the largest are left out, as in
+        :func:`hamiltonian_terms`.
+
+    Returns
+    -------
+    expression : sympy.Expr
+        ``H~`` up to its constant; its free symbols are named after the state
+        variables.
+
+    Raises
+    ------
+    ImportError
+        If sympy is not installed, with the command that installs it.
+
+    See Also
+    --------
+    hamiltonian_terms : The same terms as data.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from sk_hamiltonian import HamiltonianRegressor
+    >>> from sk_hamiltonian.inspection import to_sympy
+    >>> rng = np.random.default_rng(0)
+    >>> X = rng.uniform([-2, -np.pi], [2, np.pi], size=(300, 2))
+    >>> y = np.column_stack([-9.8 * np.sin(X[:, 1]), X[:, 0]])  # H = p^2/2 - 9.8 cos q
+    >>> model = HamiltonianRegressor(degree=4, periodic=[False, True], threshold=0.01)
+    >>> to_sympy(model.fit(X, y)).evalf(4)
+    0.5*p**2 - 9.8*cos(q)
+    """
+    try:
+        import sympy
+    except ImportError as error:
+        raise ImportError(
+            'to_sympy needs sympy: pip install "sk_hamiltonian[symbolic]" (or pip install sympy).'
+        ) from error
+    terms = hamiltonian_terms(model, state_names=state_names, rtol=rtol)
+    if state_names is None:
+        names = getattr(model, "feature_names_in_", None)
+        state_names = list(names) if names is not None else _default_names(model.n_features_in_)
+    symbols = sympy.symbols(list(state_names), real=True)
+    omega = 2 * np.pi / (model.domain_[:, 1] - model.domain_[:, 0])
+    expression = sympy.Integer(0)
+    for term in terms:
+        factor = sympy.Float(term.coefficient)
+        for i, power in enumerate(term.powers):
+            if power == 0:
+                continue
+            if not model.periodic_[i]:
+                factor *= symbols[i] ** power
+                continue
+            frequency = abs(power) * omega[i]
+            argument = (
+                abs(power) * symbols[i] if np.isclose(omega[i], 1.0)
+                else sympy.Float(frequency) * symbols[i]
+            )
+            factor *= sympy.cos(argument) if power > 0 else sympy.sin(argument)
+        expression += factor
+    return expression

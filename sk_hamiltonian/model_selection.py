@@ -11,7 +11,9 @@ predictions started at every observation, :func:`one_standard_error_rule`,
 a ``refit`` callable that prefers the smallest model whose score is within one
 standard error of the best, and :func:`segment_trajectories`, which cuts long
 records into segments with group labels, so that a few long records can be
-cross-validated like many short trajectories.
+cross-validated like many short trajectories, and :func:`threshold_path`,
+each sparsity threshold's model size and cross-validated score, with the
+thresholds that tie with the best.
 """
 
 import numbers
@@ -22,6 +24,7 @@ from sklearn.pipeline import Pipeline
 
 from ._base import BaseTrajectoryRegressor, is_trajectory_container
 from ._scoring import multistep_errors
+from ._threshold_path import threshold_path
 from ._trajectories import check_trajectories
 from ._vector_field import VectorFieldRegressor
 
@@ -30,6 +33,7 @@ __all__ = [
     "multistep_scorer",
     "one_standard_error_rule",
     "segment_trajectories",
+    "threshold_path",
 ]
 
 

@@ -15,6 +15,7 @@ __all__ = [
     "plot_errors",
     "plot_phase",
     "plot_states",
+    "plot_threshold_path",
     "plot_trajectories",
 ]
 
@@ -308,3 +309,49 @@ def plot_states(t, trajectories, *, state_names=None, n_markers=120, axes=None):
         ax.set_ylabel(names[i])
     axes[0].legend(fontsize="small")
     return axes
+
+
+def plot_threshold_path(path, *, ax=None):
+    """Plot cross-validated score against model size along a threshold path.
+
+    Each threshold is a point at its number of terms (logarithmic axis) with
+    its mean score and one standard error as a bar; the thresholds that tie
+    with the best (within one standard error) are filled, the others hollow,
+    and each point is labelled with its threshold.
+
+    Parameters
+    ----------
+    path : sklearn.utils.Bunch
+        The output of :func:`sk_hamiltonian.model_selection.threshold_path`.
+    ax : matplotlib.axes.Axes, default=None
+        Where to draw; None makes a new figure.
+
+    Returns
+    -------
+    ax : matplotlib.axes.Axes
+
+    See Also
+    --------
+    sk_hamiltonian.model_selection.threshold_path : Computes the path.
+    """
+    missing = [key for key in ("thresholds", "n_terms", "mean_score", "std_error", "tied")
+               if key not in path]
+    if missing:
+        raise ValueError(
+            f"path must be the output of model_selection.threshold_path; it lacks "
+            f"{', '.join(missing)}."
+        )
+    ax = _axes(ax)
+    terms = np.asarray(path["n_terms"], dtype=float)
+    mean, error = np.asarray(path["mean_score"]), np.asarray(path["std_error"])
+    tied = np.asarray(path["tied"], dtype=bool)
+    ax.errorbar(terms, mean, yerr=error, fmt="none", ecolor="0.5", capsize=3)
+    ax.plot(terms[tied], mean[tied], "o", color="C0", label="within one standard error of the best")
+    ax.plot(terms[~tied], mean[~tied], "o", mfc="none", color="C0", label="worse")
+    for x, y, value in zip(terms, mean, path["thresholds"]):
+        ax.annotate(f"{value:g}", (x, y), textcoords="offset points", xytext=(4, 4), fontsize=8)
+    ax.set_xscale("log")
+    ax.set_xlabel("terms of the model")
+    ax.set_ylabel("cross-validated score")
+    ax.legend(loc="best", fontsize=8)
+    return ax

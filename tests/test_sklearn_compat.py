@@ -75,7 +75,11 @@ def expected_failed_checks(estimator):
 # the generated problems (up to 10 features, a few samples) are underdetermined,
 # and it returns the minimum-norm least-squares solution (with a warning).
 @parametrize_with_checks(
-    [HamiltonianRegressor(), VectorFieldRegressor(), DerivativeTransformer(dt=0.1)],
+    [
+        HamiltonianRegressor(), VectorFieldRegressor(), DerivativeTransformer(dt=0.1),
+        # Sparse fits take the same paths through validation and fitting.
+        HamiltonianRegressor(threshold=0.05), VectorFieldRegressor(threshold=0.05),
+    ],
     expected_failed_checks=expected_failed_checks,
     xfail_strict=True,
 )

@@ -1,0 +1,127 @@
+"""The threshold path: model size against cross-validated score, over sparsity thresholds."""
+
+import numpy as np
+from sklearn.base import clone
+from sklearn.model_selection import GridSearchCV
+from sklearn.pipeline import Pipeline
+from sklearn.utils import Bunch
+
+from ._base import BaseTrajectoryRegressor
+
+
+def _threshold_parameter(estimator):
+    """The ``set_params`` name of the final regressor's ``threshold``."""
+    if isinstance(estimator, Pipeline):
+        name, final = estimator.steps[-1]
+        prefix = f"{name}__"
+    else:
+        final, prefix = estimator, ""
+    if not isinstance(final, BaseTrajectoryRegressor):
+        raise ValueError(
+            f"estimator must be a HamiltonianRegressor or VectorFieldRegressor, or a "
+            f"Pipeline ending in one; got {type(final).__name__}."
+        )
+    return prefix + "threshold"
+
+
+def threshold_path(estimator, X, thresholds, *, cv=5, scoring=None, n_jobs=None):
+    """Cross-validated score and model size for each sparsity threshold.
+
+    For each threshold the estimator (a regressor, or a pipeline ending in
+    one) is cross-validated with ``scoring`` and fitted once on all of ``X``
+    for its number of terms. The result shows the trade-off between size and
+    score, and which thresholds tie with the best: those whose mean score is
+    within one standard error (of the best candidate's fold scores) of it.
+
+    Parameters
+    ----------
+    estimator : HamiltonianRegressor, VectorFieldRegressor or Pipeline
+        The model, with every parameter but ``threshold`` set.
+    X : array-like
+        What the estimator's ``fit`` takes: trajectories for a pipeline
+        starting with :class:`~sk_hamiltonian.DerivativeTransformer`, the
+        derivative layout for a regressor.
+    thresholds : array-like of float
+        Non-negative thresholds, e.g. ``[0, 1e-3, 1e-2, 3e-2, 0.1]``.
+    cv : int or cross-validation generator, default=5
+        As in :class:`~sklearn.model_selection.GridSearchCV`: folds of whole
+        trajectories.
+    scoring : str or callable, default=None
+        None: the estimator's own ``score`` (the honest rollout score).
+    n_jobs : int, default=None
+        Parallel fits, as in :class:`~sklearn.model_selection.GridSearchCV`.
+
+    Returns
+    -------
+    path : sklearn.utils.Bunch
+        With ``thresholds`` (sorted), ``n_terms`` (of the fit on all of
+        ``X``), ``mean_score``, ``std_error`` (standard deviation of the fold
+        scores over the square root of the number of folds), ``tied`` (bool:
+        within one standard error of the best mean score), ``best_index``
+        (the best mean score) and ``smallest_tied_index`` (the fewest terms
+        among the tied), and ``cv_results``, the search's ``cv_results_``.
+
+    Raises
+    ------
+    ValueError
+        If ``thresholds`` is empty or has a negative or non-finite entry, or
+        the estimator is not a regressor of this package (or a pipeline
+        ending in one).
+
+    See Also
+    --------
+    sk_hamiltonian.plotting.plot_threshold_path : Draws the path.
+    sk_hamiltonian.HamiltonianRegressor : Its ``threshold`` parameter.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from sklearn.pipeline import make_pipeline
+    >>> from sk_hamiltonian import DerivativeTransformer, HamiltonianRegressor
+    >>> from sk_hamiltonian.datasets import make_trajectories, single_pendulum
+    >>> from sk_hamiltonian.model_selection import threshold_path
+    >>> X = make_trajectories(single_pendulum(), 60, 40, dt=0.01, noise=0.02, random_state=0)
+    >>> pipe = make_pipeline(
+    ...     DerivativeTransformer(dt=0.01, degree=3),
+    ...     HamiltonianRegressor(degree=6, periodic=[False, True], momentum_degree=2),
+    ... )
+    >>> path = threshold_path(pipe, X, [0.0, 0.03], cv=3)
+    >>> path.n_terms.tolist()
+    [32, 2]
+    """
+    name = _threshold_parameter(estimator)
+    values = np.asarray(thresholds, dtype=float).ravel()
+    if values.size == 0 or not np.all(np.isfinite(values)) or np.any(values < 0):
+        raise ValueError(
+            f"thresholds must be a non-empty list of finite numbers >= 0; got {thresholds!r}."
+        )
+    values = np.unique(values)
+    search = GridSearchCV(
+        estimator, {name: list(values)}, cv=cv, scoring=scoring, refit=False, n_jobs=n_jobs
+    ).fit(X)
+    results = search.cv_results_
+    mean = np.asarray(results["mean_test_score"], dtype=float)
+    n_splits = search.n_splits_
+    error = np.asarray(results["std_test_score"], dtype=float) / np.sqrt(n_splits)
+    n_terms = np.array([
+        _final(clone(estimator).set_params(**{name: v}).fit(X)).n_terms_ for v in values
+    ])
+    finite = np.isfinite(mean)
+    if not finite.any():
+        raise ValueError(
+            "No threshold gave a finite mean score: every candidate failed in some fold "
+            "(see cv_results for the fold scores and the fit errors)."
+        )
+    best = int(np.flatnonzero(finite)[np.argmax(mean[finite])])
+    tied = finite & (mean >= mean[best] - error[best])
+    tied_indices = np.flatnonzero(tied)
+    smallest = int(tied_indices[np.lexsort((-mean[tied], n_terms[tied]))[0]])
+    return Bunch(
+        thresholds=values, n_terms=n_terms, mean_score=mean, std_error=error, tied=tied,
+        best_index=best, smallest_tied_index=smallest, cv_results=results,
+    )
+
+
+def _final(estimator):
+    return estimator[-1] if isinstance(estimator, Pipeline) else estimator
+
