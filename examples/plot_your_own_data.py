@@ -26,13 +26,12 @@ import tempfile
 import warnings
 from pathlib import Path
 
-import joblib
 import matplotlib.pyplot as plt
 import numpy as np
 from sklearn.model_selection import GridSearchCV, KFold
 from sklearn.pipeline import make_pipeline
 
-from sk_hamiltonian import DerivativeTransformer, DomainWarning, HamiltonianRegressor
+from sk_hamiltonian import DerivativeTransformer, DomainWarning, HamiltonianRegressor, load, save
 from sk_hamiltonian.datasets import make_trajectories, single_pendulum
 from sk_hamiltonian.inspection import format_hamiltonian
 from sk_hamiltonian.metrics import hamiltonian_deviation
@@ -153,12 +152,15 @@ fig.tight_layout()
 # %%
 # Save the model, and load it back
 # --------------------------------
-# The fitted pipeline is an ordinary scikit-learn object: save it with joblib
-# and load it in another session (with the same versions of scikit-learn and
-# sk_hamiltonian).
-joblib.dump(model, workdir / "model.joblib")
-loaded = joblib.load(workdir / "model.joblib")
+# :func:`~sk_hamiltonian.save` writes the fitted pipeline as a zip of a JSON
+# manifest and arrays, which cannot carry code (unlike a pickle or joblib
+# file), with a note of where the model came from; :func:`~sk_hamiltonian.load`
+# checks everything before giving the model back, identical bit for bit.
+# ``sk-hamiltonian show model.skh`` prints it, ``sk-hamiltonian simulate``
+# runs it from new initial states (see :ref:`sharing`).
+save(model, workdir / "model.skh", provenance={"data": path.name})
+loaded = load(workdir / "model.skh")
 same = np.array_equal(loaded[-1].hamiltonian(runs["avf"]), energy["AVF"])
-print(f"saved {workdir / 'model.joblib'}; the loaded model gives the same H~: {same}")
+print(f"saved {workdir / 'model.skh'}; the loaded model gives the same H~: {same}")
 
 shutil.rmtree(workdir)  # the stand-in file and the model; keep yours

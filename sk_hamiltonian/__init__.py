@@ -9,6 +9,7 @@ from ._derivatives import DerivativeTransformer
 from ._hamiltonian import HamiltonianRegressor
 from ._trajectories import unpack_derivatives
 from ._vector_field import VectorFieldRegressor
+from .io import ModelFileError, load, save
 from .exceptions import (
     ConservationWarning,
     DomainWarning,
@@ -25,11 +26,14 @@ __all__ = [
     "DomainWarning",
     "HamiltonianRegressor",
     "IllConditionedWarning",
+    "ModelFileError",
     "SimulationError",
     "SmoothingWarning",
     "VectorFieldRegressor",
     "config_context",
     "get_config",
+    "load",
+    "save",
     "set_config",
     "unpack_derivatives",
 ]

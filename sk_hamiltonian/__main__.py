@@ -1,6 +1,7 @@
 """The ``sk-hamiltonian`` command: cross-validated Hamiltonian learning in one call.
 
-Run ``sk-hamiltonian --help`` (or ``python -m sk_hamiltonian --help``).
+Run ``sk-hamiltonian --help`` (or ``python -m sk_hamiltonian --help``). The
+sub-commands ``show`` and ``simulate`` reuse a saved model (``_cli_model``).
 """
 
 import argparse
@@ -16,11 +17,13 @@ from sklearn.model_selection import GridSearchCV, GroupKFold, KFold
 from sklearn.pipeline import make_pipeline
 
 from . import DerivativeTransformer, DomainWarning, HamiltonianRegressor, VectorFieldRegressor
+from . import _cli_model
 from ._datafiles import load_trajectories
 from ._integrate import integrate
 from ._report import UsageError, describe_energy_trend, draw_report
 from .datasets import PAPER_DT, make_trajectories, single_pendulum
 from .inspection import format_hamiltonian
+from .io import save
 from .model_selection import count_terms, segment_trajectories
 
 EXAMPLE = dict(n_trajectories=500, n_intervals=40, noise=0.08, horizon=20.0)
@@ -29,12 +32,18 @@ DEFAULT_DENOISE, DEFAULT_DEGREES = ["fd", "3", "5", "8"], [4, 6, 8, 10]
 QUICK_DENOISE, QUICK_DEGREES = ["fd", "5"], [4, 6]
 Q_KEY, N_KEY = "derivativetransformer__degree", "hamiltonianregressor__degree"
 METHOD_KEY = "derivativetransformer__method"
+THRESHOLD_KEY = "hamiltonianregressor__threshold"
+# Sparsity thresholds searched with --threshold auto (0: the dense fit).
+AUTO_THRESHOLDS = [0.0, 1e-3, 1e-2, 3e-2, 0.1]
 # Fewest samples a trajectory needs for any derivative estimate.
 MIN_SAMPLES = 3
 # Segments of a record too long to cross-validate whole: the paper's
 # trajectory length (one de-noising polynomial each with the default window),
 # shortened so that every fold gets at least two segments.
 SEGMENT_SAMPLES = 41
+# The model file the command writes (sk_hamiltonian.save: no pickle).
+MODEL_FILE = "model.skh"
+SUBCOMMANDS = {"show": _cli_model.show, "simulate": _cli_model.simulate}
 
 DESCRIPTION = """\
 Learn a Hamiltonian system from trajectory data (Wu, Qin & Xiu), choosing the
@@ -80,8 +89,20 @@ data files:
 outputs (in --output, default ./sk_hamiltonian_output):
   report.png    trajectories, phase plot, errors or energy, H~ drift
                 (needs matplotlib; skipped with a note without it)
-  model.joblib  the fitted Pipeline (DerivativeTransformer, HamiltonianRegressor);
-                load it with joblib.load
+  model.skh     the fitted Pipeline (DerivativeTransformer, HamiltonianRegressor)
+                in the safe model format (no pickle): load it with
+                sk_hamiltonian.load, or reuse it with the commands below
+  model.joblib  only with --joblib: the same Pipeline as a pickle. Loading a
+                pickle runs any code it carries: load it only if you made it
+                or trust whoever did; share model.skh instead.
+
+reuse a saved model:
+  sk-hamiltonian show MODEL       the learned H~, its terms, domain, fitted
+                                  attributes and provenance
+  sk-hamiltonian simulate MODEL --x0 P Q --t-end T -o out.csv
+                                  trajectories from new initial states, as CSV
+                                  (and a figure); see
+                                  'sk-hamiltonian simulate --help'
 
 exit status: 0 on success, 2 on a usage or data error (one-line message).
 
@@ -90,6 +111,11 @@ examples:
   sk-hamiltonian runs.npz --dt 0.05 --degrees 3 4 5 --output results
   python -m sk_hamiltonian runs.csv --dt 0.1 --denoise-degrees fd 4 6
   sk-hamiltonian record_with_times.csv --segment-length 60
+  sk-hamiltonian damped.npz --dt 0.02 --damping
+  sk-hamiltonian show sk_hamiltonian_output/model.skh
+  sk-hamiltonian simulate sk_hamiltonian_output/model.skh --x0 0.5 1 --t-end 20 -o run.csv
+
+A DATA file named 'show' or 'simulate' needs a path: ./show.
 """
 
 
@@ -110,7 +136,7 @@ def build_parser():
     )
     parser.add_argument(
         "--output", default="sk_hamiltonian_output", metavar="DIR",
-        help="directory for report.png and model.joblib (default: %(default)s)",
+        help=f"directory for report.png and {MODEL_FILE} (default: %(default)s)",
     )
     parser.add_argument(
         "--degrees", type=int, nargs="+", metavar="N",
@@ -143,6 +169,23 @@ def build_parser():
         "--seed", type=int, default=0,
         help="seed of the example's data and of the fold shuffling (default: %(default)s)",
     )
+    parser.add_argument(
+        "--damping", action="store_true",
+        help="fit linear friction with H~ (HamiltonianRegressor(damping=True)), for data "
+        "that lose energy",
+    )
+    parser.add_argument(
+        "--threshold", default="0", metavar="VALUE|auto",
+        help="sparsity threshold of H~ (HamiltonianRegressor(threshold=...)): terms of the "
+        "readable form below VALUE times the largest are dropped; 'auto' adds "
+        + ", ".join(f"{v:g}" for v in AUTO_THRESHOLDS) + " to the search grid (default: "
+        "%(default)s, every term kept)",
+    )
+    parser.add_argument(
+        "--joblib", action="store_true",
+        help="also write model.joblib (a pickle: loading it runs any code it carries; "
+        f"share {MODEL_FILE} instead)",
+    )
     # Small data and grid, for the test suite.
     parser.add_argument("--quick", action="store_true", help=argparse.SUPPRESS)
     return parser
@@ -162,10 +205,16 @@ def main(argv=None):
         0 on success. Usage and data errors raise ``SystemExit(2)`` after
         printing a one-line message to stderr.
     """
+    argv = sys.argv[1:] if argv is None else list(argv)
     parser = build_parser()
-    args = parser.parse_args(argv)
+    if argv and argv[0] in SUBCOMMANDS:
+        command = SUBCOMMANDS[argv[0]]
+        run = lambda: command(argv[1:])  # noqa: E731
+    else:
+        args = parser.parse_args(argv)
+        run = lambda: _run(args)  # noqa: E731
     try:
-        return _run(args)
+        return run()
     except UsageError as error:
         parser.exit(2, f"{parser.prog}: error: {error}\n")
 
@@ -216,11 +265,21 @@ def _run(args):
         warnings.simplefilter("ignore", DomainWarning)
         _print_drift(t, model, {"RK4": rk4, "AVF": avf})
 
-    import joblib
+    model_path = os.path.join(args.output, MODEL_FILE)
+    save(best, model_path, provenance=_provenance(args, data, search, fit_time))
+    print(
+        f"\nmodel: {model_path} (a fitted Pipeline; sk-hamiltonian show {model_path}, or "
+        f"sk_hamiltonian.load in Python)"
+    )
+    if args.joblib:
+        import joblib
 
-    model_path = os.path.join(args.output, "model.joblib")
-    joblib.dump(best, model_path)
-    print(f"\nmodel: {model_path} (a fitted Pipeline; load it with joblib.load)")
+        pickle_path = os.path.join(args.output, "model.joblib")
+        joblib.dump(best, pickle_path)
+        print(
+            f"model: {pickle_path} (--joblib; a pickle: loading it runs any code it carries, "
+            f"so load it only if you trust its source)"
+        )
     try:
         import matplotlib  # noqa: F401
     except ImportError:
@@ -275,6 +334,7 @@ def _check_positive(option, value):
 
 
 def _check_options(args):
+    _parse_threshold(args.threshold)
     if args.cv < 2:
         raise UsageError(f"--cv must be at least 2; got {args.cv}")
     if args.segment_length is not None and args.segment_length < MIN_SAMPLES:
@@ -416,6 +476,21 @@ def _parse_denoise(values):
     return list(dict.fromkeys(out))
 
 
+def _parse_threshold(value):
+    if value.strip().lower() == "auto":
+        return list(AUTO_THRESHOLDS)
+    try:
+        threshold = float(value)
+    except ValueError:
+        raise UsageError(f"--threshold: {value!r} is neither a number nor 'auto'") from None
+    if not (math.isfinite(threshold) and 0 <= threshold < 1):
+        raise UsageError(
+            f"--threshold must be 'auto' or a number in [0, 1), a fraction of the largest "
+            f"term; got {value}"
+        )
+    return [threshold]
+
+
 def _grid(args, data):
     """Candidate parameters, keeping only those the data can support."""
     X, n_states = data.X, len(data.names)
@@ -457,15 +532,20 @@ def _grid(args, data):
     Qs = [Q for Q in denoise if Q != "fd"]
     if Qs:
         grid.append({METHOD_KEY: ["polynomial"], Q_KEY: Qs, N_KEY: degrees})
+    thresholds = _parse_threshold(args.threshold)
+    if thresholds != [0.0]:  # the default grid stays today's
+        for entry in grid:
+            entry[THRESHOLD_KEY] = thresholds
     return grid
 
 
 def _describe(params):
     if hasattr(params, "get_params"):
         params = params.get_params()
+    sparse = f", threshold={params[THRESHOLD_KEY]:g}" if params.get(THRESHOLD_KEY) else ""
     if params[METHOD_KEY] == "finite_difference":
-        return f"finite differences, n={params[N_KEY]}"
-    return f"Q={params[Q_KEY]}, n={params[N_KEY]}"
+        return f"finite differences, n={params[N_KEY]}{sparse}"
+    return f"Q={params[Q_KEY]}, n={params[N_KEY]}{sparse}"
 
 
 class _ProgressScorer:
@@ -497,7 +577,9 @@ class _ProgressScorer:
 def _search(args, data):
     grid = _grid(args, data)
     n_candidates = sum(int(np.prod([len(v) for v in g.values()])) for g in grid)
-    pipe = make_pipeline(DerivativeTransformer(dt=data.dt), HamiltonianRegressor())
+    pipe = make_pipeline(
+        DerivativeTransformer(dt=data.dt), HamiltonianRegressor(damping=args.damping)
+    )
     if data.groups is None:
         folds, what = KFold(args.cv, shuffle=True, random_state=args.seed), "whole trajectories"
     else:
@@ -519,6 +601,33 @@ def _search(args, data):
         warnings.simplefilter("always")
         search.fit(data.X, groups=data.groups)
     return search, time.perf_counter() - start, sorted({w.category.__name__ for w in caught})
+
+
+def _provenance(args, data, search, fit_time):
+    """What the model file records about the data and the search."""
+    lengths = [len(T) for T in data.X]
+    i = search.best_index_
+    return {
+        "data": data.title,
+        "data_shape": (
+            f"{len(lengths)} trajectories x {min(lengths)}"
+            + (f"-{max(lengths)}" if max(lengths) > min(lengths) else "")
+            + f" samples x {len(data.names)} states"
+        ),
+        "state_names": list(data.names),
+        "fit_time_s": round(fit_time, 3),
+        "cv": (
+            f"GridSearchCV, {args.cv} folds of "
+            f"{'whole trajectories' if data.groups is None else 'contiguous segments'}, "
+            f"{len(search.cv_results_['params'])} candidates, rollout score, refit = best mean"
+        ),
+        "cv_choice": _describe(search.best_estimator_),
+        "cv_score": (
+            f"{search.cv_results_['mean_test_score'][i]:.4f} +- "
+            f"{search.cv_results_['std_test_score'][i]:.4f} over the folds"
+        ),
+        "damping": bool(args.damping),
+    }
 
 
 def _print_choice(search, n_states):

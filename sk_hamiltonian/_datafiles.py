@@ -45,6 +45,11 @@ def load_trajectories(path):
     -------
     data : DataFile
     """
+    if os.path.isdir(path):
+        raise UsageError(
+            f"{path} is a directory: give a data file (.npz or .csv) inside it, e.g. "
+            f"{os.path.join(path, 'runs.npz')}"
+        )
     if not os.path.isfile(path):
         raise UsageError(f"file not found: {path}")
     suffix = os.path.splitext(path)[1].lower()
@@ -128,6 +133,28 @@ def _load_npz(path):
     return data
 
 
+def _csv_problem(path, n_columns, error):
+    """Which row of a CSV numpy could not read, and why, in the file's own terms."""
+    with open(path, encoding="utf-8") as stream:
+        next(stream)
+        for number, line in enumerate(stream, start=2):
+            if not line.strip():
+                continue
+            fields = line.rstrip("\n").split(",")
+            if len(fields) != n_columns:
+                return (
+                    f"line {number} has {len(fields)} columns, the header {n_columns}: every "
+                    f"row needs one value per header column"
+                )
+            for field in fields:
+                try:
+                    float(field)
+                except ValueError:
+                    return f"line {number} holds {field.strip()[:20]!r}, which is not a number"
+    # Not found line by line (e.g. quoting): numpy's own words, first sentence only.
+    return f"not a numeric CSV after the header ({str(error).split('.')[0]})"
+
+
 def _load_csv(path):
     with open(path, encoding="utf-8") as stream:
         header = stream.readline().strip()
@@ -144,7 +171,7 @@ def _load_csv(path):
             warnings.simplefilter("ignore")  # numpy warns on a file without rows
             data = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
     except ValueError as error:
-        raise UsageError(f"{path}: not a numeric CSV after the header ({error})") from None
+        raise UsageError(f"{path}: {_csv_problem(path, len(names), error)}") from None
     if data.shape[0] == 0:
         raise UsageError(f"{path}: the file has a header but no data rows")
     if data.shape[1] != len(names):

@@ -351,6 +351,55 @@ class DerivativeTransformer(TransformerMixin, BaseEstimator):
                 )
         return times, [T[:, 1:] for T in trajectories]
 
+    def set_output(self, *, transform=None):
+        """Refuse DataFrame output: the derivative layout is 3-D (or ragged).
+
+        scikit-learn's ``set_output`` API turns a transformer's 2-D output into
+        a pandas or polars DataFrame. The output of this transformer is the
+        derivative layout, one 2-D block per trajectory (a 3-D array, or a list
+        of 2-D arrays of different lengths), which a DataFrame cannot hold
+        without losing the trajectories; so only the default output exists.
+        Use :func:`unpack_derivatives` to get the times, states and
+        derivatives of each trajectory as arrays, and build frames from those.
+
+        Parameters
+        ----------
+        transform : {"default"} or None, default=None
+            ``"default"`` or None: keep the default output (nothing changes).
+
+        Returns
+        -------
+        self : DerivativeTransformer
+            The transformer, unchanged.
+
+        Raises
+        ------
+        ValueError
+            For ``transform="pandas"`` or ``"polars"`` (also when a
+            :class:`~sklearn.pipeline.Pipeline` holding this transformer is
+            asked for them).
+
+        See Also
+        --------
+        unpack_derivatives : Splits the output into times, states, derivatives
+            and observations.
+
+        Examples
+        --------
+        >>> from sk_hamiltonian import DerivativeTransformer
+        >>> DerivativeTransformer().set_output(transform="default")
+        DerivativeTransformer()
+        """
+        if transform in (None, "default"):
+            return self
+        raise ValueError(
+            f"DerivativeTransformer cannot output {transform!r}: its output is the derivative "
+            f"layout, one 2-D block per trajectory (a 3-D array or a list of arrays), which a "
+            f"DataFrame cannot hold. Keep the default output; to look at the result as "
+            f"tables, split it with sk_hamiltonian.unpack_derivatives and build frames from "
+            f"the times, states and derivatives of each trajectory."
+        )
+
     def __sklearn_tags__(self):
         tags = super().__sklearn_tags__()
         tags.input_tags.two_d_array = False

@@ -16,11 +16,14 @@ def describe_energy_trend(model):
     if not (np.isfinite(rate) and np.isfinite(z)):
         return "energy trend of H~ along the data: not available (too few samples)"
     if abs(z) <= TREND_Z:
-        verdict = "no significant trend: the data look conservative"
+        verdict = (
+            f"within the noise (a trend counts from |z| > {TREND_Z:g}): the data look "
+            f"conservative"
+        )
     elif z < 0:
         verdict = (
             "H~ falls along the data: they look dissipative (friction), which a conservative "
-            "model cannot follow; HamiltonianRegressor(damping=True) can"
+            "model cannot follow; --damping (HamiltonianRegressor(damping=True)) can"
         )
     else:
         verdict = (

@@ -203,7 +203,10 @@ def format_hamiltonian(model, *, state_names=None, max_terms=8):
     rest = terms[max_terms:]
     if rest:
         share = rest[0].size / terms[0].size
-        text += f" + ... ({len(rest)} smaller terms, each below {share:.1%} of the largest)"
+        # Two significant digits: "0.0%" would hide how small the rest is.
+        text += (
+            f" + ... ({len(rest)} smaller terms, each below {100 * share:.2g}% of the largest)"
+        )
     return "H~ = " + text + " + const"
 
 

@@ -7,11 +7,11 @@ import re
 import subprocess
 import sys
 
-import joblib
 import numpy as np
 import pytest
 
 import sk_hamiltonian.__main__ as sk_main
+from sk_hamiltonian import load
 from sk_hamiltonian.__main__ import main
 from sk_hamiltonian._datafiles import load_trajectories
 from sk_hamiltonian._report import UsageError
@@ -52,7 +52,8 @@ def test_default_example_report(demo):
     assert len(re.findall(r"^\s+\[\d/4\] .* score \d\.\d{4} \+- \d\.\d{4}$", err, re.M)) == 4
     chosen = re.search(r"chosen: (finite differences|Q=(\d+)), n=(\d+) -> (\d+) terms", out)
     assert chosen, out
-    model = joblib.load(out_dir / "model.joblib")
+    model = load(out_dir / "model.skh")
+    assert not (out_dir / "model.joblib").exists()  # pickle only on request (--joblib)
     n, n_terms = int(chosen.group(3)), int(chosen.group(4))
     assert model[-1].degree == n and model[-1].n_terms_ == n_terms
     assert n_terms == (n + 2) * (n + 1) // 2 - 1
@@ -80,12 +81,13 @@ def test_default_example_report(demo):
                       r"\(z = (\S+)\): (.*)$", out, re.M)
     assert trend, out
     assert abs(float(trend.group(1))) <= 5 and "look conservative" in trend.group(2)
+    assert "within the noise (a trend counts from |z| > 5)" in trend.group(2)
     assert trend.group(1) == f"{model[-1].energy_trend_z_:.1f}"
 
 
 def test_model_from_the_report_predicts(demo):
     *_, out_dir = demo
-    model = joblib.load(out_dir / "model.joblib")
+    model = load(out_dir / "model.skh")
     X = make_trajectories("single_pendulum", 3, 40, 0.01, random_state=5)
     assert 0.5 < model.score(X) <= 1.0
 
@@ -107,7 +109,7 @@ def test_npz_file(tmp_path, capsys, pendulum_data):
     assert "40 trajectories x 31 samples, 2 states, dt=0.02" in out
     assert "relative error at T" not in out  # no true system to compare with
     assert "first observation of the first trajectory" in out
-    assert (out_dir / "model.joblib").exists() and (out_dir / "report.png").exists()
+    assert (out_dir / "model.skh").exists() and (out_dir / "report.png").exists()
     # Horizon: 10 trajectory lengths by default.
     assert "up to T = 6 " in out
 
@@ -164,7 +166,7 @@ def test_missing_matplotlib_skips_the_figure(tmp_path, capsys, monkeypatch, pend
     assert status == 0
     assert "figure: skipped, matplotlib is not installed" in out
     assert not (tmp_path / "report.png").exists()
-    assert (tmp_path / "model.joblib").exists()
+    assert (tmp_path / "model.skh").exists()
 
 
 def error_of(argv, capsys):
@@ -231,7 +233,10 @@ def test_help_documents_the_options(capsys):
     assert exit_info.value.code == 0
     out = capsys.readouterr().out
     for option in ("--dt", "--output", "--degrees", "--denoise-degrees", "--cv", "--horizon",
-                   "--seed", ".npz", ".csv", "model.joblib", "report.png", "exit status"):
+                   "--seed", "--damping", "--threshold", "--joblib", ".npz", ".csv", "model.skh",
+                   "model.joblib",
+                   "runs any code", "report.png", "exit status", "show MODEL",
+                   "simulate MODEL"):
         assert option in out
     assert "--quick" not in out
 
@@ -307,7 +312,7 @@ def test_csv_time_column_replaces_dt(tmp_path, capsys, time_name):
     assert re.search(
         r"30 trajectories x 25 samples, 2 states, time stamps \(median step 0\.0(19|2)", out
     ), out
-    model = joblib.load(tmp_path / "model.joblib")
+    model = load(tmp_path / "model.skh")
     assert model[0].dt is None and model[0].n_features_in_ == 2
     assert re.search(r"H~ = \d\.\d+ q\^2 \+ 0\.\d+ p\^2 ", out), out
 
@@ -482,3 +487,161 @@ def test_default_horizon_is_ten_median_durations_over_all_trajectories(
     )
     assert status == 0
     assert "up to T = 6 " in out
+
+
+# --------------------------------------------------------------------------
+# The model file and the commands that reuse it
+
+
+def test_cli_round_trip_fit_show_simulate(demo, tmp_path, capsys):
+    status, out, _, out_dir = demo
+    model_path = out_dir / "model.skh"
+    assert f"model: {model_path} (a fitted Pipeline; sk-hamiltonian show" in out
+    model = load(model_path)
+    learned = re.search(r"^learned: (H~ = .*)$", out, re.M).group(1)
+
+    status, shown, _ = run(["show", str(model_path)], capsys)
+    assert status == 0
+    # The formula and the CV choice printed by the fit are in the file.
+    assert f"learned: {learned}" in shown
+    chosen = re.search(r"chosen: (\S+(?: differences)?, n=\d+)", out).group(1)
+    assert f"cv_choice: {chosen}" in shown
+    assert "data_shape: 60 trajectories x 41 samples x 2 states" in shown
+    assert re.search(r"fit_time_s: \d+\.\d+", shown)
+    low, high = model[-1].domain_[0]
+    assert f"p: [{low:.6g}, {high:.6g}] (interval)" in shown
+    assert f"n_terms_ = {model[-1].n_terms_}" in shown
+    assert "format 1, written by sk_hamiltonian 0.1.0" in shown
+    assert f"estimator: DerivativeTransformer(dt=0.01" in shown
+
+    csv_path = tmp_path / "run.csv"
+    status, simulated, _ = run(
+        ["simulate", str(model_path), "--x0", "0.5", "1", "--x0", "0", "2", "--t-end", "2",
+         "--method", "avf", "-o", str(csv_path)], capsys,
+    )
+    assert status == 0
+    assert f"simulated 2 trajectories up to T = 2 (output step 0.01, method avf): {csv_path}" \
+        in simulated
+    data = load_trajectories(str(csv_path))
+    assert data.stamped and data.names == ["p", "q"] and len(data.trajectories) == 2
+    t = data.trajectories[0][:, 0]
+    expected = model[-1].simulate([[0.5, 1.0], [0.0, 2.0]], t, method="avf")
+    np.testing.assert_allclose(data.trajectories[:, :, 1:], expected, rtol=0, atol=0)
+    drift = [float(v) for v in re.findall(r"H~ drift max\|H~\(t\) - H~\(0\)\| = (\S+)",
+                                          simulated)]
+    assert len(drift) == 2 and max(drift) < 1e-10  # AVF conserves H~
+    assert (tmp_path / "run.png").stat().st_size > 10_000
+
+
+def test_simulate_refuses_states_outside_the_domain_unless_asked(demo, tmp_path, capsys):
+    *_, out_dir = demo
+    model_path = str(out_dir / "model.skh")
+    (low, high) = load(model_path)[-1].domain_[0]
+    argv = ["simulate", model_path, "--x0", f"{high + 1}", "0", "--t-end", "0.1",
+            "-o", str(tmp_path / "x.csv")]
+    line = error_of(argv, capsys)
+    domain = f"(p in [{low:.6g}, {high:.6g}]"
+    assert f"p = {high + 1:g} lies outside the model's domain {domain}" in line
+    assert "--allow-outside" in line and not (tmp_path / "x.csv").exists()
+    status, out, _ = run(argv + ["--allow-outside"], capsys)
+    assert status == 0 and (tmp_path / "x.csv").exists()
+
+
+@pytest.mark.parametrize(
+    "extra,message",
+    [
+        (["--x0", "1", "--t-end", "1"],
+         r"--x0 needs 2 values \(p, q\), one per state variable; got 1"),
+        (["--x0", "0", "0", "--t-end", "-1"], "--t-end must be a positive finite number"),
+        (["--x0", "0", "0", "--t-end", "1", "--dt", "nan"], "--dt must be a positive finite"),
+        (["--x0", "0", "0", "--t-end", "1", "--method", "leapfrog"],
+         "cannot simulate: .*separable"),
+    ],
+)
+def test_simulate_usage_errors(demo, tmp_path, capsys, extra, message):
+    *_, out_dir = demo
+    line = error_of(["simulate", str(out_dir / "model.skh"), *extra, "-o",
+                     str(tmp_path / "x.csv")], capsys)
+    assert re.search(message, line), line
+
+
+def test_show_and_simulate_refuse_bad_model_files(tmp_path, capsys):
+    assert "file not found" in error_of(["show", str(tmp_path / "none.skh")], capsys)
+    assert "is a directory; give the model file" in error_of(["show", str(tmp_path)], capsys)
+    bogus = tmp_path / "bogus.skh"
+    bogus.write_bytes(b"\x80\x04not a zip")
+    line = error_of(["simulate", str(bogus), "--x0", "0", "--t-end", "1", "-o", "x.csv"], capsys)
+    assert "not a readable zip archive" in line
+
+
+def test_sub_command_help(capsys):
+    for command, options in (("show", ["MODEL", "provenance"]),
+                             ("simulate", ["--x0", "--t-end", "--dt", "--method", "-o",
+                                           "--allow-outside", "--figure", "--max-step"])):
+        with pytest.raises(SystemExit) as exit_info:
+            main([command, "--help"])
+        assert exit_info.value.code == 0
+        out = capsys.readouterr().out
+        assert out.startswith(f"usage: sk-hamiltonian {command}")
+        for option in options:
+            assert option in out
+
+
+def test_damping_and_joblib_options(tmp_path, capsys):
+    X = make_trajectories(single_pendulum(damping=0.3), 40, 30, 0.02, noise=0.001, random_state=0)
+    path = tmp_path / "damped.npz"
+    np.savez(path, trajectories=X)
+    status, out, _ = run(
+        [str(path), "--dt", "0.02", "--output", str(tmp_path), "--degrees", "4",
+         "--denoise-degrees", "fd", "--damping", "--joblib", "--horizon", "1"], capsys,
+    )
+    assert status == 0
+    model = load(tmp_path / "model.skh")
+    assert model[-1].damping and model[-1].damping_[0] > 0
+    assert "(--joblib; a pickle: loading it runs any code it carries" in out
+    import joblib
+
+    pickled = joblib.load(tmp_path / "model.joblib")
+    assert np.array_equal(pickled[-1].coef_, model[-1].coef_)
+
+
+def test_a_directory_as_data_says_so(tmp_path, capsys):
+    line = error_of([str(tmp_path), "--dt", "0.1"], capsys)
+    assert f"{tmp_path} is a directory: give a data file (.npz or .csv) inside it" in line
+
+
+@pytest.mark.parametrize(
+    "rows,message",
+    [("0,1,2\n0,1,2,3\n", "line 3 has 4 columns, the header 3"),
+     ("0,1,2\n0,1,x\n", "line 3 holds 'x', which is not a number")],
+)
+def test_a_ragged_or_non_numeric_csv_names_the_line(tmp_path, capsys, rows, message):
+    path = tmp_path / "bad.csv"
+    path.write_text("trajectory,p,q\n" + rows)
+    line = error_of([str(path), "--dt", "0.1"], capsys)
+    assert message in line and "usecols" not in line
+
+
+def test_threshold_option(tmp_path, capsys, pendulum_data):
+    path = tmp_path / "runs.npz"
+    np.savez(path, trajectories=pendulum_data)
+    base = [str(path), "--dt", "0.02", "--output", str(tmp_path), "--degrees", "6",
+            "--denoise-degrees", "fd", "--horizon", "1"]
+    status, out, err = run(base + ["--threshold", "auto"], capsys)
+    assert status == 0
+    assert "search: 5 candidates" in out
+    described = re.findall(r"finite differences, n=6(, threshold=\S+)?\s+score", err)
+    assert described == ["", ", threshold=0.001", ", threshold=0.01", ", threshold=0.03",
+                         ", threshold=0.1"]
+    model = load(tmp_path / "model.skh")
+    chosen = re.search(r"chosen: finite differences, n=6(?:, threshold=(\S+))? -> (\d+) terms",
+                       out)
+    assert model[-1].threshold == float(chosen.group(1) or 0)
+    assert model[-1].n_terms_ == int(chosen.group(2))
+    status, out, _ = run(base + ["--threshold", "0.03"], capsys)
+    assert status == 0 and load(tmp_path / "model.skh")[-1].threshold == 0.03
+    learned = re.search(r"^learned: H~ = (.*) \+ const$", out, re.M).group(1)
+    # The sparse fit prints fewer terms than the dense 27 (no '...' summary).
+    assert "smaller terms" not in learned
+    for bad in ("x", "-1", "nan", "2"):
+        assert "--threshold" in error_of(base + ["--threshold", bad], capsys)

@@ -11,6 +11,7 @@ PUBLIC_MODULES = [
     "sk_hamiltonian",
     "sk_hamiltonian.datasets",
     "sk_hamiltonian.inspection",
+    "sk_hamiltonian.io",
     "sk_hamiltonian.metrics",
     "sk_hamiltonian.model_selection",
     "sk_hamiltonian.plotting",

@@ -236,7 +236,7 @@ def test_your_own_data_chooses_a_pendulum_and_conserves_it(fast_results):
     rk4 = re.search(r"RK4: max \|H~\(t\) - H~\(0\)\| = (\S+)", output)
     assert float(avf.group(1)) < 1e-10 < float(rk4.group(1)), output
     assert "the loaded model gives the same H~: True" in output, output
-    saved = Path(re.search(r"saved (\S+model\.joblib)", output).group(1))
+    saved = Path(re.search(r"saved (\S+model\.skh)", output).group(1))
     assert not saved.parent.exists(), "the example leaves its temporary directory behind"
 
 
