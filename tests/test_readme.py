@@ -51,7 +51,7 @@ def check_hamiltonian_example(printed):
 
 def test_readme_snippets_run_as_pasted(tmp_path):
     blocks = code_blocks("python")
-    assert len(blocks) == 3
+    assert len(blocks) == 4
     check_hamiltonian_example(run_fresh(blocks[0], tmp_path))
     printed = run_fresh(blocks[1], tmp_path)
     chosen = re.search(r"\{'derivativetransformer__degree': (\d+), "
@@ -60,6 +60,9 @@ def test_readme_snippets_run_as_pasted(tmp_path):
     n, n_terms = int(chosen.group(2)), int(chosen.group(3))
     assert n_terms == (n + 2) * (n + 1) // 2 - 1
     printed = run_fresh(blocks[2], tmp_path)
+    # The sparse pendulum: two terms, the formula of its Hamiltonian.
+    assert printed.startswith("2 terms: H~ = -9.81 cos(q) + 0.4991 p^2"), printed
+    printed = run_fresh(blocks[3], tmp_path)
     assert printed.strip() == "identical predictions: True"
     assert (tmp_path / "oscillator.skh").exists()
 
