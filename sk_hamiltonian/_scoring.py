@@ -300,7 +300,7 @@ def shooting_errors(model, Xt, *, fit_intervals=None, iterations=1,
             )
             residual = scaled_difference(model, Y0, observed[k][:w]).ravel()
             delta = np.linalg.lstsq(jac, -residual, rcond=None)[0]
-            trial.append(x[k] + delta * model.state_scale_)
+            trial.append(x[k] + delta)
         rolled, rolled_failed = predict_segments(model, trial, rel_times, substeps)
         for k in range(n_traj):
             if rolled_failed[k] or failed[k]:
