@@ -108,8 +108,9 @@ def predict_segments(model, starts, rel_times, substeps=ROLLOUT_SUBSTEPS):
         Initial states.
     rel_times : list of ndarray of shape (n_times_i,)
         Time stamps of each segment relative to its start.
-    substeps : int, default=4
-        Integration steps per (median) sampling interval.
+    substeps : int or None, default=4
+        Integration steps per (median) sampling interval; None takes the step
+        :meth:`simulate` takes by default, but at least one per interval.
 
     Returns
     -------
@@ -128,11 +129,16 @@ def predict_segments(model, starts, rel_times, substeps=ROLLOUT_SUBSTEPS):
         # `substeps` RK4 steps per typical interval (on a uniform grid, per
         # interval): irregular stamps do not make every interval pay for the
         # shortest one.
-        max_step = (
-            np.median(np.diff(grid)) / substeps
-            if integrator.name == "rk4"
-            else model._default_step(integrator.name)
-        )
+        if integrator.name != "rk4":
+            max_step = model._default_step(integrator.name)
+        elif substeps is None:
+            # The step `simulate` takes by default (a tenth of the learned
+            # system's time scale), but at least one per interval: accurate
+            # far below the model error, and cheapest where the sampling is
+            # fine.
+            max_step = min(model._default_step("rk4"), np.median(np.diff(grid)))
+        else:
+            max_step = np.median(np.diff(grid)) / substeps
         Y, failed_early = integrate_prefixes(
             integrator, np.stack([starts[i] for i in members]), grid, lengths, max_step
         )
@@ -228,17 +234,17 @@ def integrate_prefixes(integrator, y0, grid, lengths, max_step):
 SHOOTING_STEP = 1e-6
 
 
-def shooting_errors(model, Xt, *, fit_intervals=None, iterations=1,
-                    substeps=ROLLOUT_SUBSTEPS):
+def shooting_errors(model, Xt, *, fit_intervals=None, substeps=None, return_first=False):
     """Errors of rollouts from least-squares initial states (shooting).
 
     Each held-out trajectory's initial state is fitted under the model to its
-    first ``fit_intervals + 1`` observations (all of them by default) by
-    Gauss-Newton steps from its first observation, with a forward-difference
+    first ``fit_intervals + 1`` observations (all of them by default) by one
+    Gauss-Newton step from its first observation, with a forward-difference
     Jacobian; the rollout from the fitted state is then compared with all the
-    observations. A step is kept only if it lowers the misfit over the fitted
-    observations, so the fitted start is never worse than the first
-    observation.
+    observations. The step is kept only if it lowers the misfit over the
+    fitted observations, so the fitted start is never worse than the first
+    observation. The rollouts from the first observation and the perturbed
+    ones share one batch, so the whole costs about two rollouts.
 
     Parameters
     ----------
@@ -249,17 +255,21 @@ def shooting_errors(model, Xt, *, fit_intervals=None, iterations=1,
     fit_intervals : int or None, default=None
         Sampling intervals the initial state is fitted to; None fits it to the
         whole trajectory.
-    iterations : int, default=1
-        Gauss-Newton steps.
-    substeps : int, default=4
-        Integration steps per sampling interval.
+    substeps : int or None, default=None
+        Integration steps per sampling interval; None: the model's default
+        step, at least one per interval (see :func:`predict_segments`).
+    return_first : bool, default=False
+        Also return the rollouts from the first observations (for studies).
 
     Returns
     -------
     errors : ndarray of shape (n_trajectories,)
         Root-mean-square of ``(X_hat - X) / state_scale_`` over each whole
-        trajectory, from its fitted initial state; ``inf`` where the rollout
+        trajectory from its fitted initial state, ``inf`` where the rollout
         from the first observation failed.
+    first : list of ndarray, and ndarray of bool
+        The rollouts from the first observations and whether they failed;
+        only with ``return_first=True``.
     """
     data = unpack_derivatives(Xt)
     times, observed = list(data.times), list(data.observed)
@@ -269,50 +279,51 @@ def shooting_errors(model, Xt, *, fit_intervals=None, iterations=1,
         t.shape[0] if fit_intervals is None else min(fit_intervals + 1, t.shape[0])
         for t in rel_times
     ]
-    x = [O[0].astype(float) for O in observed]
     steps = SHOOTING_STEP * model.state_scale_
-    base, failed = predict_segments(model, x, rel_times, substeps)
-    misfit = [_misfit(model, Y, O, w) for Y, O, w in zip(base, observed, window)]
-    for _ in range(iterations):
-        # One batch: every trajectory perturbed along every state variable,
-        # over its fitting window only.
-        starts, segment_times = [], []
-        for k in range(n_traj):
-            for i in range(n_states):
-                starts.append(x[k] + np.eye(n_states)[i] * steps[i])
-                segment_times.append(rel_times[k][: window[k]])
-        perturbed, perturbed_failed = predict_segments(model, starts, segment_times, substeps)
-        trial = []
-        for k in range(n_traj):
-            w = window[k]
-            if failed[k] or w < 2:
-                trial.append(x[k])
-                continue
-            rows = slice(k * n_states, (k + 1) * n_states)
-            if perturbed_failed[rows].any():
-                trial.append(x[k])
-                continue
-            Y0 = base[k][:w]
-            jac = np.stack(
-                [scaled_difference(model, perturbed[j][:w], Y0).ravel() / steps[i]
-                 for i, j in enumerate(range(rows.start, rows.stop))],
-                axis=1,
-            )
-            residual = scaled_difference(model, Y0, observed[k][:w]).ravel()
-            delta = np.linalg.lstsq(jac, -residual, rcond=None)[0]
-            trial.append(x[k] + delta)
-        rolled, rolled_failed = predict_segments(model, trial, rel_times, substeps)
-        for k in range(n_traj):
-            if rolled_failed[k] or failed[k]:
-                continue
-            m = _misfit(model, rolled[k], observed[k], window[k])
-            if m < misfit[k]:
-                x[k], base[k], misfit[k] = trial[k], rolled[k], m
-    errors = np.array([
-        np.inf if failed[k] else np.sqrt(np.mean(scaled_difference(model, base[k], observed[k]) ** 2))
-        if base[k] is not None else 0.0
-        for k in range(n_traj)
-    ])
+    # One batch: each trajectory from its first observation over its whole
+    # length, then perturbed along every state variable over its window.
+    starts = [O[0].astype(float) for O in observed]
+    segment_times = list(rel_times)
+    for k in range(n_traj):
+        for i in range(n_states):
+            starts.append(starts[k] + np.eye(n_states)[i] * steps[i])
+            segment_times.append(rel_times[k][: window[k]])
+    rolled, failed_rollout = predict_segments(model, starts, segment_times, substeps)
+    base, failed = rolled[:n_traj], failed_rollout[:n_traj]
+    first = list(base)
+    trial, trying = [], []
+    for k in range(n_traj):
+        w = window[k]
+        rows = n_traj + k * n_states + np.arange(n_states)
+        if failed[k] or w < 2 or failed_rollout[rows].any():
+            continue
+        Y0 = base[k][:w]
+        jac = np.stack(
+            [scaled_difference(model, rolled[j], Y0).ravel() / steps[i]
+             for i, j in enumerate(rows)],
+            axis=1,
+        )
+        residual = scaled_difference(model, Y0, observed[k][:w]).ravel()
+        delta = np.linalg.lstsq(jac, -residual, rcond=None)[0]
+        trial.append(starts[k] + delta)
+        trying.append(k)
+    if trying:
+        moved, moved_failed = predict_segments(
+            model, trial, [rel_times[k] for k in trying], substeps
+        )
+        for Y, bad, k in zip(moved, moved_failed, trying):
+            if not bad and _misfit(model, Y, observed[k], window[k]) < _misfit(
+                model, base[k], observed[k], window[k]
+            ):
+                base[k] = Y
+    errors = np.zeros(n_traj)
+    for k in range(n_traj):
+        if failed[k]:
+            errors[k] = np.inf
+        elif base[k] is not None:
+            errors[k] = np.sqrt(np.mean(scaled_difference(model, base[k], observed[k]) ** 2))
+    if return_first:
+        return errors, (first, failed)
     return errors
 
 
@@ -322,28 +333,61 @@ def _misfit(model, Y, O, w):
     return float(np.sum(scaled_difference(model, Y[:w], O[:w]) ** 2))
 
 
-def noise_floor(model, Xt, order=3):
-    """Per-trajectory estimate of the observation noise, in the score's units.
+# Largest polynomial degree in time of the noise-floor fits; the degree of
+# each trajectory is chosen up to it by generalized cross-validation.
+FLOOR_MAX_DEGREE = 12
 
-    The ``order``-th differences of a smooth signal sampled finely are nearly
-    zero, while those of white noise of variance ``s**2`` have variance
-    ``C(2 order, order) s**2``; so the mean square of the scaled differences,
-    divided by that binomial, estimates the mean square noise per variable.
+
+def noise_floor(model, Xt, degree=None, max_degree=FLOOR_MAX_DEGREE):
+    """What a perfect model's shooting error would be, per held-out trajectory.
+
+    Each trajectory's scaled observations (periodic variables unwrapped) are
+    fitted by polynomials in time, of the degree (up to 12, and below half
+    the samples) that minimizes the generalized cross-validation criterion;
+    the residual variance, corrected for the fitted coefficients, estimates
+    the observation noise ``s**2``; a model that is exact and fits the
+    ``n_states`` initial values would leave ``s**2 (N - n_states) / N`` over
+    ``N`` values. The estimate depends on the raw observations, their times
+    and ``state_scale_`` only, never on the candidate's dynamics, so it is
+    nearly the same for every candidate on a fold.
+
+    Parameters
+    ----------
+    model : fitted regressor
+        For ``state_scale_`` and the periodic variables only.
+    Xt : derivative layout
+        Held-out trajectories.
 
     Returns
     -------
     floor : ndarray of shape (n_trajectories,)
-        Root-mean-square noise of each trajectory's scaled observations
-        (0 for trajectories too short to tell).
+        Root-mean-square noise floor of each trajectory, in the units of
+        :func:`shooting_errors` (0 where a trajectory is too short to tell).
     """
-    from math import comb
-
     data = unpack_derivatives(Xt)
-    out = []
-    for O in data.observed:
-        if O.shape[0] <= order:
-            out.append(0.0)
+    floor = np.zeros(len(data.observed))
+    bases = {}
+    for k, (t, O) in enumerate(zip(data.times, data.observed)):
+        n_times, n_states = O.shape
+        top = min(max_degree if degree is None else degree, n_times // 2 - 1)
+        if top < 1:
             continue
-        D = np.diff(model._space.wrap_difference(O - O[0]), n=order, axis=0)
-        out.append(float(np.sqrt(np.mean((D / model.state_scale_) ** 2) / comb(2 * order, order))))
-    return np.array(out)
+        s = 2.0 * (t - t[0]) / (t[-1] - t[0]) - 1.0
+        key = (n_times, np.round(s, 9).tobytes())
+        if key not in bases:
+            # Nested orthonormal bases: the first d + 1 columns of Q span the
+            # polynomials of degree d.
+            bases[key] = np.linalg.qr(np.polynomial.legendre.legvander(s, top))[0]
+        Q = bases[key]
+        steps = model._space.wrap_difference(np.diff(O, axis=0)) / model.state_scale_
+        Z = np.concatenate([np.zeros((1, n_states)), np.cumsum(steps, axis=0)])
+        total = np.sum(Z**2)
+        explained = np.cumsum(np.sum((Q.T @ Z) ** 2, axis=1))
+        n_values = Z.size
+        n_coef = n_states * np.arange(1, top + 2)
+        rss = np.maximum(total - explained, 0.0)
+        gcv = n_values * rss / (n_values - n_coef) ** 2
+        d = int(np.argmin(gcv)) if degree is None else top
+        noise = rss[d] / (n_values - n_coef[d])
+        floor[k] = np.sqrt(noise * (n_values - n_states) / n_values)
+    return floor
