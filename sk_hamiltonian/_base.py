@@ -12,19 +12,18 @@ from sklearn.utils.validation import _check_sample_weight, check_is_fitted, vali
 
 from ._design import TrainingData
 from ._integrate import integrate, make_integrator, raise_on_failure
-from ._scoring import rollout_score
-from ._solvers import (
-    choose_solver,
-    solve_dense,
-    solve_iterative,
-    solve_nonnegative_tail,
-    solve_normal,
-    stack_blocks,
-    warn_if_ill_conditioned,
-    warn_not_converged,
+from ._least_squares import (
+    CGNotConverged,
+    LeastSquaresProblem,
+    accumulated_solver,
+    column_solver,
+    fit_support,
 )
+from ._scoring import rollout_score
+from ._solvers import choose_solver, warn_if_ill_conditioned
 from ._streaming import PartialFitState
 from ._space import ModelSpace, index_set
+from ._space.readable import ReadableBasis
 from ._space.space import outside_domain
 from ._trajectories import unpack_derivatives
 from .exceptions import DomainWarning
@@ -79,10 +78,6 @@ class _ShapeOnly:
         return np.inf
 
 
-class _FallBack(Exception):
-    """Conjugate gradients did not converge under solver="auto"."""
-
-
 class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
     """Linear models of ``dx/dt = f(x)`` in a tensor-product space, fitted by least squares.
 
@@ -99,6 +94,7 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
         "separable": ["boolean"],
         "max_interaction": [Interval(Integral, 1, None, closed="left"), None],
         "fit_on": [StrOptions({"derivatives", "steps"})],
+        "threshold": [Interval(Real, 0, None, closed="left")],
         "solver": [StrOptions({"auto", "lstsq", "normal", "iterative"})],
         "verbose": ["verbose"],
     }
@@ -108,8 +104,8 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
 
     def __init__(
         self, degree=3, *, domain=None, periodic=None, momentum_degree=None,
-        separable=False, max_interaction=None, fit_on="derivatives", solver="auto",
-        verbose=0,
+        separable=False, max_interaction=None, fit_on="derivatives", threshold=0.0,
+        solver="auto", verbose=0,
     ):
         self.degree = degree
         self.domain = domain
@@ -118,6 +114,7 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
         self.separable = separable
         self.max_interaction = max_interaction
         self.fit_on = fit_on
+        self.threshold = threshold
         self.solver = solver
         self.verbose = verbose
 
@@ -239,21 +236,9 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
         ``data`` (one chunk) serves the energy-trend check; ``residual(keep)``
         optionally returns the refinement callback against the design.
         """
-        gram, rhs = state.normal_equations()
-        n_columns, n_tail = self._n_unknowns(), self._n_nonnegative()
-
-        def solve(keep):
-            refine = None if residual is None else residual(keep)
-            if keep.all():
-                return solve_normal(gram, rhs, refine)
-            return solve_normal(gram[np.ix_(keep, keep)], rhs[keep], refine)
-
-        if n_tail:
-            coef, self.cond_, self.rank_ = solve_nonnegative_tail(solve, n_columns, n_tail)
-        else:
-            coef, self.cond_, self.rank_ = solve(np.ones(n_columns, dtype=bool))
+        solve, norms = accumulated_solver(*state.normal_equations(), residual)
+        self._set_solution(self._fit_support(solve, norms))
         self.solver_ = "normal"
-        self._set_solution(coef)
         self._finish_fit(
             data, scale=state.scale(), magnitude=state.magnitude(),
             time_scale_states=state.reservoir,
@@ -274,8 +259,7 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
 
     def _finish_fit(self, data, scale=None, magnitude=None, time_scale_states=None):
         """Fitted attributes beyond the coefficients, from the training data."""
-        warn_if_ill_conditioned(self.cond_, self.rank_, self._n_columns(), type(self).__name__)
-        self.n_terms_ = self._n_fitted()
+        warn_if_ill_conditioned(self.cond_, self.rank_, self._n_solved, type(self).__name__)
         self.dt_ = self._training_step(data)
         self.state_scale_ = self._state_scale(data.states) if scale is None else scale
         # Typical size of each variable, for ranking terms (inspection).
@@ -404,75 +388,72 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
 
     def _fit_coef(self, data):
         """Solve the least-squares problem of ``data`` with ``solver_``; set the coefficients."""
-        coef, self.cond_, self.rank_ = self._solve(data)
-        self._set_solution(coef)
-
-    def _solve(self, data):
-        """Coefficients, condition number and rank; the last unknowns constrained >= 0.
-
-        The subclass hooks give the design three ways: row blocks
-        (``_design_blocks``, for ``"lstsq"``), grouped row blocks into a
-        ``_normal_accumulator`` (``"normal"``), and an operator
-        (``_design_operator``, for ``"iterative"`` and for refining a
-        Cholesky solution without assembling the design again).
-        """
-        name = type(self).__name__
-        n_columns, n_nonnegative = self._n_unknowns(), self._n_nonnegative()
-
-        def constrained(solve):
-            if not n_nonnegative:
-                return solve(np.ones(n_columns, dtype=bool))
-            return solve_nonnegative_tail(solve, n_columns, n_nonnegative)
-
-        if self.solver_ == "iterative":
-            operator = self._design_operator(data)
-            report = self._progress("iteration {0}: relative normal residual {1:.2e}")
-
-            def solve_cg(keep):
-                coef, cond, rank, converged = solve_iterative(operator, keep, progress=report)
-                if not converged and self.solver == "auto":
-                    raise _FallBack
-                if not converged:
-                    warn_not_converged(name)
-                return coef[keep], cond, rank
-
-            try:
-                return constrained(solve_cg)
-            except _FallBack:
-                # The preconditioner assumes samples spread over the box; these
-                # are not: fall back to the dense normal equations.
-                self.solver_ = "normal"
-                if self.verbose:
-                    print(f"[{name}] conjugate gradients did not converge; normal equations")
-        if self.solver_ == "lstsq":
-            A, b = stack_blocks(self._design_blocks(data), n_columns)
-
-            def solve_svd(keep):
-                # solve_dense overwrites its design: give it a copy unless it
-                # is the only solve.
-                return solve_dense(A if not n_nonnegative else A[:, keep], b)
-
-            return constrained(solve_svd)
-        accumulator = self._normal_accumulator().add_blocks(
-            self._design_blocks(data, grouped=True),
-            progress=self._progress("block {0}: {1} equations accumulated"),
+        problem = LeastSquaresProblem(
+            lambda grouped=False: self._design_blocks(data, grouped=grouped),
+            self._normal_accumulator, lambda: self._design_operator(data),
+            self._n_unknowns(), self._n_nonnegative(),
         )
-        gram, rhs = accumulator.result()
-        operator = self._design_operator(data)
+        name = type(self).__name__
+        single_solve = self.threshold == 0 and not self._n_nonnegative()
+        try:
+            solve, norms = column_solver(
+                problem, self.solver_, single_solve=single_solve,
+                fall_back=self.solver == "auto",
+                progress=self._progress("iteration {0}: relative normal residual {1:.2e}"),
+                block_progress=self._progress("block {0}: {1} equations accumulated"),
+                name=name,
+            )
+            solution = self._fit_support(solve, norms)
+        except CGNotConverged:
+            # The preconditioner assumes samples spread over the box; these
+            # are not: fall back to the dense normal equations.
+            self.solver_ = "normal"
+            if self.verbose:
+                print(f"[{name}] conjugate gradients did not converge; normal equations")
+            solution = self._fit_support(*column_solver(
+                problem, "normal",
+                block_progress=self._progress("block {0}: {1} equations accumulated"), name=name,
+            ))
+        self._set_solution(solution)
 
-        def solve_cholesky(keep):
-            def residual(coef):
-                full = np.zeros((n_columns,) + coef.shape[1:])
-                full[keep] = coef
-                r = operator.targets - operator.matvec(full if full.ndim == 2 else full[:, None])
-                out = operator.rmatvec(r)[keep]
-                return out if coef.ndim == 2 else out[:, 0]
+    def _fit_support(self, solve, column_norms):
+        """The support rule of ``threshold`` over a column solver (see :mod:`._least_squares`)."""
+        return fit_support(
+            solve, column_norms, self._n_unknowns(), n_basis=self._space.n_terms,
+            threshold=self.threshold, n_nonnegative=self._n_nonnegative(),
+            readable=self._readable_basis() if self.threshold else None,
+            name=type(self).__name__,
+        )
 
-            if keep.all():
-                return solve_normal(gram, rhs, residual)
-            return solve_normal(gram[np.ix_(keep, keep)], rhs[keep], residual)
+    def _readable_basis(self):
+        return ReadableBasis(self.powers_, self.domain_, self.periodic_)
 
-        return constrained(solve_cholesky)
+    def _set_solution(self, solution):
+        """Set the fitted coefficients, support and solve diagnostics from a Solution."""
+        self.support_ = solution.support
+        self.n_terms_ = int(solution.n_kept)
+        self.n_iter_ = solution.n_iter
+        self.cond_, self.rank_ = solution.cond, solution.rank
+        self._n_solved = solution.n_solved
+        self._set_coef(solution.coef)
+        self._rebuild_fitted()
+
+    def _rebuild_fitted(self):
+        """Private state derived from the public fitted attributes.
+
+        Called after every fit, and after loading a saved model: the model
+        space of ``powers_`` on ``domain_``, and the smaller space of the kept
+        terms that evaluation and simulation use, so that their cost follows
+        ``support_``.
+        """
+        if getattr(self, "_space", None) is None:
+            self._space = ModelSpace(self.domain_, self.powers_, self.periodic_)
+        rows = self.support_ if self.support_.ndim == 1 else self.support_.any(axis=1)
+        if rows.all():
+            self._eval_space, self._eval_coef = self._space, self.coef_
+        else:
+            self._eval_space = ModelSpace(self.domain_, self.powers_[rows], self.periodic_)
+            self._eval_coef = self.coef_[rows]
 
     def _progress(self, message):
         """A progress callback printing ``message`` when ``verbose`` (None when silent)."""
@@ -736,14 +717,6 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
     def _rows_per_sample(self, n_states):
         raise NotImplementedError
 
-    def _n_columns(self):
-        """Number of columns of the least-squares design."""
-        return self._space.n_terms
-
-    def _n_fitted(self):
-        """Number of fitted unknowns."""
-        return int(np.size(self.coef_))
-
     def _design_blocks(self, data, grouped=False):
         """Row blocks of the design (grouped: ``(A, b, group)`` for the accumulator)."""
         raise NotImplementedError
@@ -764,7 +737,7 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
         """How many of the last unknowns are constrained to be >= 0."""
         return 0
 
-    def _set_solution(self, coef):
+    def _set_coef(self, coef):
         """Set the fitted coefficients from the solution vector."""
         raise NotImplementedError
 

@@ -72,6 +72,20 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
         Hamiltonian of the AVF method at the data step, within ``O(dt**2)`` of
         the true one; :meth:`simulate` then uses AVF at the training step by
         default. Needs the derivative layout as input.
+    threshold : float, default=0.0
+        Sparsity threshold. 0 fits every basis function (the paper's fit).
+        A positive value runs sequentially thresholded least squares (STLSQ)
+        in the *readable* basis, the monomials and angles of
+        :func:`~sk_hamiltonian.inspection.hamiltonian_terms`: terms whose
+        coefficient, scaled by the norm of its design column, is below
+        ``threshold`` times the largest are dropped, the rest refitted, until
+        no term is dropped. So ``p**2 / 2 - 9.81 cos q`` can come back as two
+        terms (in the fitting basis ``p**2`` needs its lower-degree Legendre
+        companions, which stay). Friction coefficients are never dropped.
+        Choose it by cross-validation (see
+        :func:`~sk_hamiltonian.model_selection.threshold_path`); typical values
+        are ``1e-3`` to ``0.1``. Sparsity is judged in the variables as given,
+        about their zero.
     damping : bool, default=False
         Add linear friction, ``dp/dt = -dH~/dq - gamma * dq/dt``, with one
         ``gamma >= 0`` per degree of freedom fitted jointly with ``H~`` by the
@@ -115,8 +129,15 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
         ``"normal"``).
     rank_ : int
         Numerical rank of that design.
+    support_ : ndarray of shape (n_basis,) of bool
+        Basis functions with a coefficient; all True with ``threshold=0``.
+        Evaluation and simulation use only these, so their cost follows the
+        kept terms.
     n_terms_ : int
-        Number of fitted unknowns: ``n_basis``, plus ``n_dof`` with damping.
+        Number of fitted unknowns: ``n_basis`` (with a threshold, the kept
+        readable terms), plus ``n_dof`` with damping.
+    n_iter_ : int
+        Least-squares solves of the thresholded fit (1 with ``threshold=0``).
     solver_ : str
         The solver used (``"normal"`` after :meth:`partial_fit` or a fit on
         dask arrays).
@@ -177,13 +198,13 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
 
     def __init__(
         self, degree=3, *, domain=None, periodic=None, momentum_degree=None,
-        separable=False, max_interaction=None, fit_on="derivatives", damping=False,
-        solver="auto", verbose=0,
+        separable=False, max_interaction=None, fit_on="derivatives", threshold=0.0,
+        damping=False, solver="auto", verbose=0,
     ):
         super().__init__(
             degree, domain=domain, periodic=periodic, momentum_degree=momentum_degree,
             separable=separable, max_interaction=max_interaction, fit_on=fit_on,
-            solver=solver, verbose=verbose,
+            threshold=threshold, solver=solver, verbose=verbose,
         )
         self.damping = damping
 
@@ -238,29 +259,26 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
     def _n_nonnegative(self):
         return self._space.n_states // 2 if self.damping else 0
 
-    def _set_solution(self, coef):
+    def _set_coef(self, coef):
         space = self._space
         self.coef_ = coef[: space.n_terms]
         self.damping_ = coef[space.n_terms :] if self.damping else np.zeros(space.n_states // 2)
+
+    def _rebuild_fitted(self):
+        super()._rebuild_fitted()
         self._split = self._separable_parts() if self.separable else None
-
-    def _n_fitted(self):
-        return self._n_columns()
-
-    def _n_columns(self):
-        return self._space.n_terms + (self.damping_.size if self.damping else 0)
 
     def _separable_parts(self):
         """Spaces and coefficients of ``T(p)`` and ``V(q)`` of a separable model."""
         d = self.n_features_in_ // 2
-        on_p = np.any(self.powers_[:, :d] != 0, axis=1)
+        powers, coef = self.powers_[self.support_], self.coef_[self.support_]
+        on_p = np.any(powers[:, :d] != 0, axis=1)
         parts = []
         for terms, variables in ((on_p, slice(0, d)), (~on_p, slice(d, 2 * d))):
             part = ModelSpace(
-                self.domain_[variables], self.powers_[terms][:, variables],
-                self.periodic_[variables],
+                self.domain_[variables], powers[terms][:, variables], self.periodic_[variables],
             )
-            parts.append((part, self.coef_[terms]))
+            parts.append((part, coef[terms]))
         return parts
 
     def _after_fit(self, data):
@@ -304,19 +322,21 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
 
     # ------------------------------------------------------------ evaluation
     def _gradient(self, X):
+        space = self._eval_space
         return self._in_blocks(
-            X, lambda B: self._space.gradient_dot(B, self.coef_),
-            self._space.n_terms * self._space.layout.n_slots,
+            X, lambda B: space.gradient_dot(B, self._eval_coef),
+            space.n_terms * space.layout.n_slots,
         )
 
     def _hamiltonian(self, X):
+        space = self._eval_space
         return self._in_blocks(
-            X, lambda B: self._space.value_dot(B, self.coef_),
-            self._space.n_terms * self._space.layout.n_slots,
+            X, lambda B: space.value_dot(B, self._eval_coef),
+            space.n_terms * space.layout.n_slots,
         )
 
     def _hessian(self, X):
-        return self._space.hessian_dot(X, self.coef_)
+        return self._eval_space.hessian_dot(X, self._eval_coef)
 
     def _vector_field(self, X):
         return apply_structure(self._gradient(X), self._damping())
@@ -339,7 +359,7 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
             )
         return Dynamics(
             self._vector_field, jacobian=self._jacobian,
-            damping=self._damping(), n_nodes=quadrature_nodes(self._space),
+            damping=self._damping(), n_nodes=quadrature_nodes(self._eval_space),
             wrap=self._space.wrap if self.periodic_.any() else None, **split,
         )
 

@@ -357,7 +357,8 @@ def _ritz_condition(alphas, betas):
     return float(ritz[-1] / ritz[0]) if ritz[0] > 0 else np.inf
 
 
-def solve_iterative(operator, keep=None, rtol=CG_RTOL, max_iter=CG_MAX_ITER, progress=None):
+def solve_iterative(operator, keep=None, rtol=CG_RTOL, max_iter=CG_MAX_ITER, progress=None, *,
+                    basis=None):
     """Preconditioned conjugate gradients on the normal equations (CGLS).
 
     Parameters
@@ -373,24 +374,31 @@ def solve_iterative(operator, keep=None, rtol=CG_RTOL, max_iter=CG_MAX_ITER, pro
         Iteration cap.
     progress : callable, default=None
         Called as ``progress(iteration, relative_residual)``.
+    basis : sparse matrix of shape (n_kept, n_unknowns), default=None
+        Solve for ``u`` with the kept columns' coefficients ``basis @ u``
+        (a subspace, e.g. a thresholded support); None: for the kept
+        columns' coefficients themselves.
 
     Returns
     -------
-    coef : ndarray of shape (n_columns,) or (n_columns, K)
-        Zero outside ``keep``; 1-D when the operator has one target.
+    coef : ndarray of shape (n_unknowns,) or (n_unknowns, K)
+        The kept columns' coefficients (or ``u``); 1-D when the operator has
+        one target.
     cond : float
         Estimated condition number of the equilibrated design (an upper
         bound: preconditioner times the Ritz estimate of the preconditioned
         operator).
     rank : int
-        Number of columns solved for (the closed-form preconditioner is
-        positive definite, so rank is not measured).
+        Number of unknowns (the closed-form preconditioner is positive
+        definite, so rank is not measured).
     converged : bool
         Whether ``rtol`` was reached within ``max_iter`` iterations.
     """
     n = operator.n_columns
     keep = np.ones(n, dtype=bool) if keep is None else np.asarray(keep, dtype=bool)
     M = operator.gram_estimate()[np.ix_(keep, keep)]
+    if basis is not None:
+        M = basis.T @ (basis.T @ M).T
     norms = _column_norms(np.diag(M).copy())
     M_eq = M / np.outer(norms, norms)
     factor = linalg.cho_factor(M_eq, lower=False, check_finite=False)
@@ -400,13 +408,17 @@ def solve_iterative(operator, keep=None, rtol=CG_RTOL, max_iter=CG_MAX_ITER, pro
 
     def full(x):
         out = np.zeros((n, x.shape[1]))
-        out[keep] = x
+        out[keep] = x if basis is None else basis @ x
         return out
 
+    def restrict(r):
+        s = operator.rmatvec(r)[keep]
+        return s if basis is None else basis.T @ s
+
     b = operator.targets
-    x = np.zeros((int(keep.sum()), b.shape[1]))
+    x = np.zeros((M.shape[0], b.shape[1]))
     r = b.copy()
-    s = operator.rmatvec(r)[keep]
+    s = restrict(r)
     z = precondition(s)
     p = z.copy()
     gamma = np.einsum("ik,ik->k", s, z)
@@ -419,7 +431,7 @@ def solve_iterative(operator, keep=None, rtol=CG_RTOL, max_iter=CG_MAX_ITER, pro
         alpha = np.where(qq > 0, gamma / np.where(qq > 0, qq, 1.0), 0.0)
         x += alpha * p
         r -= alpha[None, :, None] * q
-        s = operator.rmatvec(r)[keep]
+        s = restrict(r)
         z = precondition(s)
         gamma_new = np.einsum("ik,ik->k", s, z)
         relative = float(np.sqrt(np.max(gamma_new / gamma0)))
@@ -435,14 +447,13 @@ def solve_iterative(operator, keep=None, rtol=CG_RTOL, max_iter=CG_MAX_ITER, pro
         gamma = gamma_new
     cond_preconditioner = _normal_condition(M_eq, factor) ** 2
     cond = math.sqrt(cond_preconditioner * _ritz_condition(alphas, betas))
-    coef = full(x)
     if operator.one_target:
-        coef = coef[:, 0]
-    return coef, cond, int(keep.sum()), converged
+        x = x[:, 0]
+    return x, cond, x.shape[0], converged
 
 
 # ------------------------------------------------------------ constraints
-def solve_nonnegative_tail(solve, n_columns, n_tail):
+def solve_nonnegative_tail(solve, n_columns, n_tail, keep=None):
     """Least squares whose last ``n_tail`` unknowns are constrained to be ``>= 0``.
 
     An active-set loop for a handful of constrained unknowns (damping
@@ -458,6 +469,9 @@ def solve_nonnegative_tail(solve, n_columns, n_tail):
         Number of unknowns.
     n_tail : int
         How many of the last unknowns must be non-negative.
+    keep : ndarray of shape (n_columns,) of bool, default=None
+        Columns to solve for (e.g. a thresholded support); the others are
+        zero. None: all.
 
     Returns
     -------
@@ -468,15 +482,17 @@ def solve_nonnegative_tail(solve, n_columns, n_tail):
         (the constraint determines them), so that a fixed damping is not
         reported as lost rank.
     """
-    keep = np.ones(n_columns, dtype=bool)
+    keep = np.ones(n_columns, dtype=bool) if keep is None else np.array(keep, dtype=bool)
+    fixed = 0
     while True:
         sub, cond, rank = solve(keep)
         coef = np.zeros(n_columns)
         coef[keep] = sub
         tail = coef[n_columns - n_tail :]
         if n_tail == 0 or tail.min() >= 0:
-            return coef, cond, rank + int(np.sum(~keep))
+            return coef, cond, rank + fixed
         keep[n_columns - n_tail + int(np.argmin(tail))] = False
+        fixed += 1
 
 
 def warn_if_ill_conditioned(cond, rank, n_terms, estimator_name):

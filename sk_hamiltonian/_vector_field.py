@@ -49,6 +49,11 @@ class VectorFieldRegressor(BaseTrajectoryRegressor):
         ``"steps"``: fit ``x1 - x0 = dt int_0^1 f(x0 + s (x1 - x0)) ds`` on the
         observed steps instead of estimated derivatives (derivative layout
         input only), the counterpart of the structure-preserving steps fit.
+    threshold : float, default=0.0
+        Sparsity threshold, as in :class:`HamiltonianRegressor`, applied to
+        each component separately (SINDy's sequentially thresholded least
+        squares, in this library and the readable basis of monomials and
+        angles). 0 fits every basis function.
     solver : {"auto", "lstsq", "normal", "iterative"}, default="auto"
         As in :class:`HamiltonianRegressor`.
     verbose : int, default=0
@@ -72,8 +77,15 @@ class VectorFieldRegressor(BaseTrajectoryRegressor):
         ``"normal"``).
     rank_ : int
         Numerical rank of that design.
+    support_ : ndarray of the shape of ``coef_`` of bool
+        Basis functions with a coefficient, per component; all True with
+        ``threshold=0``.
     n_terms_ : int
-        Number of fitted coefficients, ``coef_.size``.
+        Number of fitted coefficients: ``coef_.size``, or with a threshold the
+        kept readable terms summed over the components.
+    n_iter_ : int
+        Least-squares solves of the thresholded fit (the most over the
+        components; 1 with ``threshold=0``).
     solver_ : str
         The solver used (``"normal"`` after :meth:`partial_fit` or a fit on
         dask arrays).
@@ -130,13 +142,13 @@ class VectorFieldRegressor(BaseTrajectoryRegressor):
     def _n_unknowns(self):
         return self._space.n_terms
 
-    def _set_solution(self, coef):
+    def _set_coef(self, coef):
         self.coef_ = coef
 
     def _vector_field(self, X):
+        space = self._eval_space
         return self._in_blocks(
-            X, lambda B: self._space.value_dot(B, self.coef_),
-            self._space.n_terms * self._space.layout.n_slots,
+            X, lambda B: space.value_dot(B, self._eval_coef), space.n_terms * space.layout.n_slots
         )
 
     def _is_vector_field(self):
@@ -146,7 +158,7 @@ class VectorFieldRegressor(BaseTrajectoryRegressor):
         if not self._is_vector_field():
             return None
         # J[s, c, i] = d f_c / d x_i = sum_j coef[j, c] d_i phi_j.
-        return np.einsum("sij,jc->sci", self._space.gradients(X), self.coef_)
+        return np.einsum("sij,jc->sci", self._eval_space.gradients(X), self._eval_coef)
 
     def _dynamics(self):
         if not self._is_vector_field():
@@ -157,6 +169,6 @@ class VectorFieldRegressor(BaseTrajectoryRegressor):
             )
         return Dynamics(
             self._vector_field, jacobian=self._jacobian,
-            n_nodes=quadrature_nodes(self._space, of_gradient=False),
+            n_nodes=quadrature_nodes(self._eval_space, of_gradient=False),
             wrap=self._space.wrap if self.periodic_.any() else None,
         )
