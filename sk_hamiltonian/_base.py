@@ -677,7 +677,7 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
         ranking; it removes from the fold scores the spread that comes from
         how noisy each fold's trajectories are, so that the standard errors of
         a search show model differences. The score does not change when the
-        data are translated or the clock is shifted or rescaled, and neither
+        data are translated or the clock is shifted, and neither
         the derivatives nor the smoothed states enter, so tuning the
         derivative estimator cannot game it. With 2-D states ``X`` and
         derivatives ``y``, the usual :func:`~sklearn.metrics.r2_score` of the
