@@ -1,9 +1,11 @@
 """Errors of predictions from held-out observations: the honest score.
 
-Shared by the regressors' default ``score`` (one rollout per trajectory) and
+The regressors' default ``score`` (:func:`rollout_score`: one rollout per
+trajectory from a least-squares initial state, less a noise floor) and
 :func:`sk_hamiltonian.model_selection.multistep_scorer` (short predictions from
-every observation). Only the raw observations and their time stamps enter, never
-the derivatives or smoothed states of the step being tuned.
+every observation, :func:`multistep_errors`) share the batched integration
+here. Only the raw observations and their time stamps enter, never the
+derivatives or smoothed states of the step being tuned.
 """
 
 import numpy as np
