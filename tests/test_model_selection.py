@@ -85,10 +85,11 @@ def test_grid_search_scores_rollouts_against_held_out_observations(noisy_pendulu
     # Recompute one fold by hand: whole trajectories held out; each one's
     # initial state fitted to its raw observations by converged least squares,
     # and a noise floor from polynomial fits in time, chosen by BIC,
-    # subtracted (root-mean-squares over the trajectories). The score takes one Gauss-Newton step from the first
-    # observation: exact for the linear flow of a quadratic H~ (Q=3, n=2 is
-    # candidate 0), while on nonlinear flows it stops short of the optimum
-    # (measured: by 4e-3 to 5e-3 in the score for the n=4 candidates here,
+    # subtracted (root-mean-squares over the trajectories). The score takes
+    # one Gauss-Newton step from the first observation: exact for the linear
+    # flow of a quadratic H~ (Q=3, n=2 is candidate 0), while on nonlinear
+    # flows it stops short of the optimum (measured with the mean over
+    # trajectories: by 4e-3 to 5e-3 in the score for the n=4 candidates here,
     # whose errors are 0.1-0.4).
     i = 0
     with warnings.catch_warnings():
