@@ -44,9 +44,9 @@ Without DATA, runs the paper's Example 1 in-process: the single pendulum,
 500 trajectories of 41 samples, dt = 0.01, +-8 % multiplicative noise.
 
 The search is a GridSearchCV over (Q, n) whose folds hold out whole
-trajectories; each candidate is scored by rolling it out from every held-out
-trajectory's first observation and comparing with the observations (the
-default score). With fewer trajectories than folds (e.g. one long record),
+trajectories; each candidate is scored by rolling it out from an initial
+state fitted to every held-out trajectory's observations and comparing with
+them (the default score). With fewer trajectories than folds (e.g. one long record),
 the trajectories are cut into contiguous segments and each fold holds out one
 contiguous stretch of them (blocked cross-validation). The refit takes the
 candidate with the best mean score: on noisy pendulum and Morse data it came
