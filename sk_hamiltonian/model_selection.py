@@ -428,7 +428,7 @@ def segment_trajectories(X, segment_length, *, n_groups=None, tail="merge"):
     -----
     Every segment is a trajectory of its own downstream: its derivatives are
     estimated from its own samples only, and the default score rolls it out
-    from its own first observation.
+    from an initial state fitted to its own observations.
 
     Examples
     --------
