@@ -669,10 +669,9 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
         standard deviation over the training states (``state_scale_``). From
         it the score subtracts a noise floor ``f_k``, estimated from the raw
         observations alone by polynomial fits in time, and is
-        ``1 - sqrt(mean_k min(1, e_k)**2) + sqrt(mean_k f_k**2)``: a model as
-        good as the noise lets the data tell scores about 1 (a little more, by
-        chance), and rollouts that fail or stray by more than the spread of
-        the data cost up to 1. The floor is the same for every candidate on a
+        ``1 - mean_k (min(1, e_k) - f_k)``: a model as good as the noise lets
+        the data tell scores about 1 (a little more, by chance), and a rollout
+        that fails or strays by more than the spread of the data costs 1. The floor is the same for every candidate on a
         fold, so it changes no
         ranking; it removes from the fold scores the spread that comes from
         how noisy each fold's trajectories are, so that the standard errors of
