@@ -77,8 +77,8 @@ print(f"{len(X)} trajectories of {min(map(len, X))} to {max(map(len, X))} sample
 # degree ``Q`` through each trajectory's samples (which also de-noises the
 # states), then fits ``H~`` as a polynomial of degree ``n``. The search holds
 # out whole trajectories (``KFold`` over the list) and scores each candidate
-# by simulating it from every held-out trajectory's first sample and
-# comparing with the held-out samples (the estimator's ``score``). Among the
+# by simulating it from an initial state fitted to every held-out trajectory's
+# samples and comparing with them (the estimator's ``score``). Among the
 # candidates whose score is within one standard error of the best, the
 # one-standard-error rule refits the one with the fewest terms: a small model
 # is easy to read. To get closest to the true system, keep scikit-learn's

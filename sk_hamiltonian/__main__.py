@@ -53,9 +53,9 @@ Without DATA, runs the paper's Example 1 in-process: the single pendulum,
 500 trajectories of 41 samples, dt = 0.01, +-8 % multiplicative noise.
 
 The search is a GridSearchCV over (Q, n) whose folds hold out whole
-trajectories; each candidate is scored by rolling it out from every held-out
-trajectory's first observation and comparing with the observations (the
-default score). With fewer trajectories than folds (e.g. one long record),
+trajectories; each candidate is scored by rolling it out from an initial
+state fitted to every held-out trajectory's observations and comparing with
+them (the default score). With fewer trajectories than folds (e.g. one long record),
 the trajectories are cut into contiguous segments and each fold holds out one
 contiguous stretch of them (blocked cross-validation). The refit takes the
 candidate with the best mean score: on noisy pendulum and Morse data it came
@@ -640,6 +640,21 @@ def _print_choice(search, n_states):
         f"best mean {means[top]:.4f} at {_describe(results['params'][top])}, "
         f"{count_terms(search.estimator, n_states, results['params'][top])} terms)"
     )
+    # Imported here to keep this note self-contained in the command's module.
+    from .model_selection import candidate_table
+
+    table = candidate_table(results)
+    others = [k for k in np.flatnonzero(table["tied"]) if k != i]
+    if others:
+        names = "; ".join(_describe(results["params"][k]) for k in others[:4])
+        more = f" and {len(others) - 4} more" if len(others) > 4 else ""
+        print(
+            f"tied: {len(others)} other candidate{'s' if len(others) > 1 else ''} within one "
+            f"standard error of the best ({names}{more}): the cross-validation cannot tell "
+            f"them apart, so this pick among them is partly chance"
+        )
+    else:
+        print("no tie: every other candidate scores more than one standard error below")
 
 
 def _fit_baseline(best, X):

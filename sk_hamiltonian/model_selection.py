@@ -6,7 +6,9 @@ on the trajectory array: one sample is one trajectory, so the folds hold out
 whole trajectories, and the default score already compares rollouts with the
 held-out *observations* (see :meth:`~sk_hamiltonian.HamiltonianRegressor.score`).
 
-This module adds :func:`multistep_scorer`, a held-out score from short
+This module adds :func:`candidate_table`, which shows each candidate's mean
+score with its standard error and which candidates the data cannot tell
+from the best, :func:`multistep_scorer`, a held-out score from short
 predictions started at every observation, :func:`one_standard_error_rule`,
 a ``refit`` callable that prefers the smallest model whose score is within one
 standard error of the best, and :func:`segment_trajectories`, which cuts long
@@ -29,6 +31,7 @@ from ._trajectories import check_trajectories
 from ._vector_field import VectorFieldRegressor
 
 __all__ = [
+    "candidate_table",
     "count_terms",
     "multistep_scorer",
     "one_standard_error_rule",
@@ -199,6 +202,118 @@ def one_standard_error_rule(estimator, n_states, *, metric="score"):
     return rule
 
 
+def candidate_table(search, *, metric="score"):
+    """Each candidate's mean score, its standard error, and the ties with the best.
+
+    A candidate *ties* with the best when its mean test score is at least the
+    best mean minus the best candidate's standard error (the fold scores'
+    standard deviation over ``sqrt(n_splits)``): the threshold of
+    :func:`one_standard_error_rule`. Tied candidates are ones the
+    cross-validation cannot tell apart from the best; which of them a search
+    picks is partly chance. The paired columns compare every candidate with
+    the best fold by fold, which removes what all candidates share on a fold
+    (e.g. how noisy its held-out trajectories are).
+
+    Parameters
+    ----------
+    search : fitted GridSearchCV or RandomizedSearchCV, or dict
+        A fitted search, or its ``cv_results_``.
+    metric : str, default="score"
+        Which score: ``"score"`` for single-metric searches, else the key of
+        the ``scoring`` dict.
+
+    Returns
+    -------
+    table : dict of ndarray
+        One entry per candidate, in the order of ``cv_results_``:
+
+        - ``"params"``: the candidates' parameters (a list);
+        - ``"mean"``: mean test score over the folds;
+        - ``"se"``: its standard error, ``std / sqrt(n_splits)``;
+        - ``"difference"``: mean of the fold-by-fold differences to the best
+          candidate (0 for the best, negative for the others);
+        - ``"difference_se"``: standard error of those differences;
+        - ``"tied"``: whether the candidate ties with the best (the best
+          included);
+        - ``"best"``: whether it is the candidate with the best mean score.
+
+        ``pandas.DataFrame(table)`` shows it as a table. Candidates with a
+        non-finite mean score (a failed fit or rollout in some fold) have NaN
+        differences and never tie.
+
+    Raises
+    ------
+    ValueError
+        If ``search`` is neither a fitted search nor a ``cv_results_`` dict
+        with the test scores of ``metric`` per split, or no candidate has a
+        finite mean score.
+
+    See Also
+    --------
+    one_standard_error_rule : Picks the smallest of the tied candidates.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from sk_hamiltonian.model_selection import candidate_table
+    >>> results = {
+    ...     "params": [{"degree": 2}, {"degree": 3}, {"degree": 4}],
+    ...     "split0_test_score": np.array([0.80, 0.95, 0.96]),
+    ...     "split1_test_score": np.array([0.82, 0.97, 0.96]),
+    ...     "mean_test_score": np.array([0.81, 0.96, 0.96]),
+    ... }
+    >>> table = candidate_table(results)
+    >>> table["tied"].tolist(), table["best"].tolist()
+    ([False, True, True], [False, True, False])
+    >>> np.round(table["se"], 4).tolist()
+    [0.0071, 0.0071, 0.0]
+    """
+    results = getattr(search, "cv_results_", search)
+    if not isinstance(results, dict) or "params" not in results:
+        raise ValueError(
+            f"search must be a fitted GridSearchCV (or RandomizedSearchCV) or its "
+            f"cv_results_ dict; got {type(search).__name__}. Fit the search first."
+        )
+    if not isinstance(metric, str):
+        raise ValueError(
+            f"metric must be the name of a score in cv_results_ ('score', or a key "
+            f"of the scoring dict); got {metric!r}."
+        )
+    keys = sorted(
+        (key for key in results if key.startswith("split") and key.endswith(f"_test_{metric}")),
+        key=lambda key: int(key[len("split"): key.index("_")]),
+    )
+    if not keys:
+        raise ValueError(
+            f"cv_results_ has no per-split test scores of {metric!r}: pass metric= the name "
+            f"of a score of the search ('score' for single-metric searches)."
+        )
+    folds = np.column_stack([np.asarray(results[key], dtype=float) for key in keys])
+    n_splits = folds.shape[1]
+    means = folds.mean(axis=1)
+    finite = np.isfinite(folds).all(axis=1)
+    if not finite.any():
+        raise ValueError(
+            f"No candidate has a finite mean {metric!r}: every candidate failed in some "
+            f"fold. Rerun the search with error_score='raise' to see why."
+        )
+    se = folds.std(axis=1) / np.sqrt(n_splits)
+    best = int(np.flatnonzero(finite)[np.argmax(means[finite])])
+    paired = folds - folds[best]
+    difference = np.where(finite, paired.mean(axis=1), np.nan)
+    difference_se = np.where(finite, paired.std(axis=1) / np.sqrt(n_splits), np.nan)
+    tied = finite & (means >= means[best] - se[best])
+    return {
+        "params": list(results["params"]),
+        "mean": means,
+        "se": se,
+        "difference": difference,
+        "difference_se": difference_se,
+        "tied": tied,
+        "best": np.arange(means.shape[0]) == best,
+    }
+
+
 def multistep_scorer(n_steps=5, *, stride=1):
     """Held-out score from short predictions started at every observation.
 
@@ -317,7 +432,7 @@ def segment_trajectories(X, segment_length, *, n_groups=None, tail="merge"):
     -----
     Every segment is a trajectory of its own downstream: its derivatives are
     estimated from its own samples only, and the default score rolls it out
-    from its own first observation.
+    from an initial state fitted to its own observations.
 
     Examples
     --------

@@ -82,31 +82,72 @@ def test_grid_search_scores_rollouts_against_held_out_observations(noisy_pendulu
     assert search.best_params_[f"{Regressor.__name__.lower()}__degree"] == 4
     assert search.best_estimator_[-1].n_features_in_ == 2
 
-    # Recompute one fold by hand: whole trajectories held out, each rolled out
-    # from its first *observed* state and compared with its raw observations.
-    i = 3
-    params = search.cv_results_["params"][i]
-    train, test = next(iter(cv.split(X)))
+    # Recompute one fold by hand: whole trajectories held out; each one's
+    # initial state fitted to its raw observations by converged least squares,
+    # and a noise floor from polynomial fits in time, chosen by BIC,
+    # subtracted (means over the trajectories). The score takes
+    # one Gauss-Newton step from the first observation: exact for the linear
+    # flow of a quadratic H~ (Q=3, n=2 is candidate 0), while on nonlinear
+    # flows it stops short of the optimum (measured with the mean over
+    # trajectories: by 4e-3 to 5e-3 in the score for the n=4 candidates here,
+    # whose errors are 0.1-0.4).
+    i = 0
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        model = clone(pipe).set_params(**params).fit(X[train])
-        t = dt * np.arange(X.shape[1])
-        Y = model[-1].simulate(X[test, 0], t, max_step=dt / 4)
-    # Errors in units of each variable's spread over the training states.
-    scaled = (Y - X[test]) / model[-1].state_scale_
-    errors = np.sqrt(np.mean(scaled**2, axis=(1, 2)))
-    expected = 1.0 - np.mean(np.minimum(errors, 1.0))
-    assert search.cv_results_["split0_test_score"][i] == pytest.approx(expected, rel=1e-9)
-
-    # Against the smoothed states (or from the first smoothed state), the score
-    # would differ by far more than the tolerance above: the check tells them apart.
+        train, test = next(iter(cv.split(X)))
+        model = clone(pipe).set_params(**search.cv_results_["params"][i]).fit(X[train])
+        expected, first = reference_score(model[-1], X[test], dt)
+    linear = Regressor is HamiltonianRegressor
+    got = search.cv_results_["split0_test_score"][i]
+    # The degree-2 vector field is quadratic, its flow nonlinear: see above.
+    assert got == pytest.approx(expected, rel=1e-9 if linear else 1e-2)
+    assert got <= expected + 1e-9  # the converged fit is never worse
+    # Rolled out from the first observations instead (the score before
+    # shooting), or compared with the smoothed states, it would differ by far
+    # more than the tolerance above: the check tells them apart.
+    assert abs(first - expected) > 1e-2
     smoothed = unpack_derivatives(model[:-1].transform(X[test])).states
-    for start, target in ((X[test, 0], smoothed), (smoothed[:, 0], X[test])):
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            Z = model[-1].simulate(start, t, max_step=dt / 4)
-        e = np.linalg.norm(Z - target, axis=(1, 2)) / np.linalg.norm(target, axis=(1, 2))
-        assert abs(1.0 - np.mean(np.minimum(e, 1.0)) - expected) > 1e-6
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        against_smoothed, _ = reference_score(model[-1], smoothed, dt)
+    assert abs(against_smoothed - expected) > 1e-3
+
+
+def reference_score(model, observed, dt):
+    """The default score recomputed with scipy and numpy, trajectory by trajectory."""
+    from scipy.optimize import least_squares
+
+    t = dt * np.arange(observed.shape[1])
+    step = min(0.1 * model.time_scale_, dt)  # the score's RK4 step
+    shot, first, floor = [], [], []
+    for O in observed:
+        def residual(x0, O=O):
+            Y = model.simulate(x0, t, max_step=step)
+            return ((Y - O) / model.state_scale_).ravel()
+
+        r0 = residual(O[0])
+        fit = least_squares(residual, O[0], x_scale=model.state_scale_)
+        shot.append(np.sqrt(np.mean(min(fit.fun @ fit.fun, r0 @ r0) / r0.size)))
+        first.append(np.sqrt(np.mean(r0**2)))
+        # Floor: polynomial fits in (normalized) time, degree by BIC.
+        Z = (O - O[0]) / model.state_scale_
+        s = 2 * t / t[-1] - 1
+        N = Z.size
+        best = None
+        for d in range(0, min(12, len(t) // 2 - 1) + 1):
+            V = np.polynomial.legendre.legvander(s, d)
+            rss = np.sum((Z - V @ np.linalg.lstsq(V, Z, rcond=None)[0]) ** 2)
+            p = Z.shape[1] * (d + 1)
+            bic = N * np.log(rss / N) + p * np.log(N)
+            if best is None or bic < best[0]:
+                best = (bic, rss, p)
+        _, rss, p = best
+        floor.append(np.sqrt(rss / (N - p) * (N - Z.shape[1]) / N))
+    shot, first, floor = map(np.array, (shot, first, floor))
+    return (
+        1.0 - np.mean(np.minimum(shot, 1.0) - floor),
+        1.0 - np.mean(np.minimum(first, 1.0) - floor),
+    )
 
 
 def test_grid_search_accepts_a_list_of_trajectories(noisy_pendulum):
