@@ -17,20 +17,31 @@ Rows (``method``):
 ``non-SP-RK4``
     :class:`~sk_hamiltonian.VectorFieldRegressor` (the paper's baseline), in
     the same model space as SP.
-``PySINDy-RK4``
-    PySINDy's model stepped by the same fixed-step RK4 through its public
-    ``predict`` (timed); accuracy from the identical vectorized evaluation,
-    whose time is also reported (``sim_vectorized_s``). The STLSQ threshold is
-    tuned modestly: the largest of (0, 0.001, 0.01, 0.1) whose derivative
-    error on held-out trajectories is within 1.25x of the best (tuning time
-    not counted in ``fit_s``).
-``PySINDy-Fourier-RK4``
-    Scenes with angles: PySINDy with a library shaped like SP's space
-    (polynomial in the momenta times sines and cosines of the angles).
+``SP-sparse-RK4``, ``non-SP-STLSQ-RK4``
+    The same regressors with ``threshold`` (STLSQ in the readable basis),
+    chosen by ``GridSearchCV`` with the default score over
+    ``_common.SPARSE_THRESHOLDS`` (:func:`_common.fit_sparse`), in the scene's
+    sparse model space (the pendulum: periodic in ``q``, quadratic in ``p``,
+    degree 8). ``fit_s`` is the final fit; ``select_s`` the whole search.
+``PySINDy-best-RK4``
+    PySINDy at its best reasonable configuration for the scene
+    (``Scene.sindy_best``): a library fitted to the scene (sines and cosines
+    of the angles times a polynomial in the momenta; polynomial of the true
+    degree otherwise), ``SmoothedFiniteDifference`` on noisy data, bagging
+    (``EnsembleOptimizer``, 20 models) and the STLSQ threshold chosen by
+    3-fold cross-validation (:func:`_common.cv_sindy_threshold`;
+    ``select_s``). Stepped by the same RK4 on its vectorized model; the time
+    through ``predict`` is measured on at most ``PREDICT_STEPS`` steps and
+    scaled to the horizon.
+``PySINDy-poly-RK4``
+    The labelled extra row: PySINDy's ``PolynomialLibrary`` at the scene's
+    degree with plain ``STLSQ``, fed our derivatives, its threshold the largest
+    of (0, 0.001, 0.01, 0.1) whose derivative error on held-out trajectories
+    is within 1.25x of the best.
 ``PySINDy-LSODA``
-    PySINDy's own ``simulate`` (``solve_ivp`` LSODA, rtol = atol = 1e-12, its
-    defaults); from ``u0*`` only, as it takes seconds per trajectory (not run
-    on the scenes beyond the paper, see ``NEW_SCENE_SINDY``).
+    With ``--lsoda``: the polynomial model through PySINDy's own ``simulate``
+    (``solve_ivp`` LSODA, rtol = atol = 1e-12, its defaults); from ``u0*``
+    only, as it takes seconds per trajectory.
 
 Outputs, in ``--output`` (default ``benchmarks/results/``):
 ``speed_accuracy.csv``, ``speed_ratios.csv``, ``speed_vs_accuracy.png`` and,
@@ -85,11 +96,20 @@ from sk_hamiltonian import (  # noqa: E402
 )
 
 # The paper's settings (M, J, n, noise) with dt = 0.01 (the paper gives none).
+# Sparse rows: the pendulum in its periodic mechanical space (H = p^2/2 -
+# g cos q has two terms there); PySINDy-best with the matching library (sines
+# and cosines of q up to frequency 3 times 1, p, p^2). Henon-Heiles and Cherry
+# are polynomial: the scene's space, and PySINDy's polynomial library of
+# degree 3 (the true vector fields have degree 2).
+PENDULUM_SPARSE = dict(sparse_degree=8,
+                       sparse_space=dict(periodic=[False, True], momentum_degree=2),
+                       sindy_best=dict(degree=2, fourier=3, periodic=[False, True]))
+POLYNOMIAL_BEST = dict(sindy_best=dict(degree=3))
 SCENES = [
-    C.Scene("pendulum 8% noise", "single_pendulum", 6, 500, 40, noise=0.08),
-    C.Scene("pendulum clean", "single_pendulum", 6, 500, 40),
-    C.Scene("Henon-Heiles", "henon_heiles", 3, 500, 2),
-    C.Scene("Cherry", "cherry", 3, 500, 2),
+    C.Scene("pendulum 8% noise", "single_pendulum", 6, 500, 40, noise=0.08, **PENDULUM_SPARSE),
+    C.Scene("pendulum clean", "single_pendulum", 6, 500, 40, **PENDULUM_SPARSE),
+    C.Scene("Henon-Heiles", "henon_heiles", 3, 500, 2, **POLYNOMIAL_BEST),
+    C.Scene("Cherry", "cherry", 3, 500, 2, **POLYNOMIAL_BEST),
 ]
 # Scenes beyond the paper, each in the model space its physics suggests (SP and
 # non-SP alike).
@@ -113,13 +133,14 @@ SCENES = [
 NEW_SCENE_SINDY = dict(sindy_one_array=True, sindy_predict_steps=50, sindy_lsoda=False)
 DOUBLE_PENDULUM_FULL = dict(
     params=dict(g=1.0), space=dict(periodic=True, momentum_degree=2),
+    sindy_best=dict(degree=2, fourier=5),
     test_domain=[[-2.5, 2.5], [-2.5, 2.5], [-np.pi, np.pi], [-np.pi, np.pi]],
     **NEW_SCENE_SINDY)
 FPUT = dict(params=dict(n_particles=8), space=dict(separable=True, max_interaction=2),
-            data_fraction=0.5, sindy_degree=3, **NEW_SCENE_SINDY)
+            data_fraction=0.5, sindy_degree=3, sindy_best=dict(degree=3), **NEW_SCENE_SINDY)
 BEYOND_PAPER = [
     C.Scene("double pendulum full circle", "double_pendulum_full_circle", 10, 3000, 2,
-            sindy_fourier=5, **DOUBLE_PENDULUM_FULL),
+            **DOUBLE_PENDULUM_FULL),
     C.Scene("FPUT chain 8", "fput_chain", 4, 3000, 2, **FPUT),
 ]
 PAPER_SCENES = list(SCENES)
@@ -128,8 +149,8 @@ SCENES += BEYOND_PAPER
 # the double pendulum's trigonometric AVF rollouts alone would take half the
 # smoke run's budget.
 QUICK_SCENES = [
-    C.Scene("pendulum 8% noise", "single_pendulum", 6, 100, 40, noise=0.08),
-    C.Scene("Henon-Heiles", "henon_heiles", 3, 100, 2),
+    C.Scene("pendulum 8% noise", "single_pendulum", 6, 100, 40, noise=0.08, **PENDULUM_SPARSE),
+    C.Scene("Henon-Heiles", "henon_heiles", 3, 100, 2, **POLYNOMIAL_BEST),
 ]
 QUICK_BEYOND_PAPER = [
     C.Scene("FPUT chain 4", "fput_chain", 4, 100, 2, **dict(FPUT, params=dict(n_particles=4))),
@@ -145,9 +166,13 @@ FRONT_COLUMNS = ["scene", "method", "knob", "n_params", "fit_s", "sim_s", "total
                  "err_T20", "fresh_err_T20", "fresh_failed", "n_fresh", "note"]
 HORIZONS = (10.0, 20.0)
 THRESHOLDS = (0.0, 0.001, 0.01, 0.1)  # PySINDy's default is 0.1
+# RK4 through PySINDy's predict (about 3 ms a call whatever the batch) is
+# timed on at most this many steps and scaled to the horizon.
+PREDICT_STEPS = 200
 
 COLUMNS = [
-    "scene", "method", "n_params", "cond", "fit_s", "sim_s", "total_s", "sim_vectorized_s",
+    "scene", "method", "n_params", "cond", "fit_s", "sim_s", "total_s", "select_s",
+    "sim_vectorized_s",
     "err_T10", "err_T20", "fresh_err_T10", "fresh_err_T20", "fresh_failed", "n_fresh",
     "fail_time", "energy_drift", "model_energy_drift", "note",
 ]
@@ -174,6 +199,8 @@ def parse_args(argv=None):
                         "paper's scenes; writes speed_front.csv and speed_vs_accuracy_front.png")
     parser.add_argument("--replot", action="store_true",
                         help="only redraw the charts from speed_accuracy.csv in --output")
+    parser.add_argument("--lsoda", action="store_true",
+                        help="also run PySINDy's own simulate (LSODA) from u0*, seconds per scene")
     return parser.parse_args(argv)
 
 
@@ -214,7 +241,7 @@ def time_simulation(model, x0, t, method, repeats):
 
 def run_scene(scene, args, ps):
     """All rows of one scene."""
-    system, Xt, deriv_s = C.make_data(scene)
+    system, Xt, deriv_s, X_raw = C.make_data(scene, raw=True)
     h = 0.02 if args.quick else scene.dt
     test_domain = scene.test_domain if scene.test_domain is not None else scene.data_domain(system)
     x0, t, truth = C.test_states(system, args.n_fresh, HORIZONS[-1], h, seed=scene.seed + 1,
@@ -225,8 +252,8 @@ def run_scene(scene, args, ps):
 
     def add(method, model, fit_s, sim_s, Y, fail_time, n_params, cond, note=""):
         row = dict(scene=scene.label, method=method, n_params=n_params, cond=cond,
-                   fit_s=fit_s, sim_s=sim_s, total_s=fit_s + sim_s, sim_vectorized_s=np.nan,
-                   note=note)
+                   fit_s=fit_s, sim_s=sim_s, total_s=fit_s + sim_s, select_s=np.nan,
+                   sim_vectorized_s=np.nan, note=note)
         row.update(accuracy(Y, fail_time, truth, t, system, n_fresh))
         row["model_energy_drift"] = (
             model_energy(model, Y[0]) if isinstance(model, HamiltonianRegressor)
@@ -246,17 +273,30 @@ def run_scene(scene, args, ps):
             add(f"{name}-{method.upper()}", model, deriv_s + fit_s, sim_s, Y, fail_time,
                 int(np.count_nonzero(model.coef_)), float(model.cond_))
 
+    # The sparse rows: threshold chosen by cross-validation on the training
+    # data, in the scene's sparse space.
+    sparse_space = scene.model_params(system, sparse=True)
+    sparse_degree = scene.sparse_degree or scene.degree
+    for name, cls in (("SP-sparse", HamiltonianRegressor), ("non-SP-STLSQ", VectorFieldRegressor)):
+        # The smoke run searches a shorter grid on 2 folds.
+        model, _, select_s, refit_s, note = C.fit_sparse(
+            cls(sparse_degree, **sparse_space), Xt,
+            C.SPARSE_THRESHOLDS[::2] if args.quick else C.SPARSE_THRESHOLDS,
+            cv=2 if args.quick else 5)
+        sim_s = time_simulation(model, u0, t, "rk4", args.repeats)
+        Y, fail_time = C.rollout(model, x0, t, "rk4")
+        add(f"{name}-RK4", model, deriv_s + refit_s, sim_s, Y, fail_time, int(model.n_terms_),
+            float(model.cond_), f"{note}; degree {sparse_degree}, space {sparse_space}")
+        rows[-1]["select_s"] = select_s
+
     if ps is None:
         return rows
-    libraries = [("PySINDy-RK4", None)]
-    if scene.sindy_fourier is not None:
-        libraries.append(("PySINDy-Fourier-RK4", scene.sindy_fourier))
-    fitted = {label: sindy_rows(scene, args, ps, system, Xt, deriv_s, x0, t, u0, label,
-                                fourier, add, rows)
-              for label, fourier in libraries}
-    # PySINDy's own simulate, for its standard (polynomial) model.
-    model, threshold, polynomial = fitted["PySINDy-RK4"]
-    if not args.quick and scene.sindy_lsoda:
+    best = sindy_best_row(scene, args, ps, system, X_raw, Xt, x0, t, u0, add, rows)
+    print(f"#   PySINDy-best: {best['note']}", flush=True)
+    model, threshold, polynomial = sindy_rows(scene, args, ps, system, Xt, deriv_s, x0, t, u0,
+                                              "PySINDy-poly-RK4", None, add, rows)
+    # PySINDy's own simulate, for the polynomial model.
+    if args.lsoda and not args.quick and scene.sindy_lsoda:
         start = time.perf_counter()
         Y_own = np.asarray(model.simulate(u0, t))
         sim_s = time.perf_counter() - start
@@ -270,6 +310,71 @@ def run_scene(scene, args, ps):
         for key in ("fresh_err_T10", "fresh_err_T20", "fresh_failed"):
             rows[-1][key] = np.nan  # not run from fresh states (seconds per trajectory)
     return rows
+
+
+def sindy_best_row(scene, args, ps, system, X_raw, Xt, x0, t, u0, add, rows):
+    """PySINDy at its best configuration for the scene; adds its row and returns it."""
+    cfg = dict(scene.sindy_best)
+    degree, fourier = cfg.get("degree", scene.degree), cfg.get("fourier")
+    periodic = np.asarray(cfg.get("periodic", system.periodic), dtype=bool)
+    states, derivatives, deriv_s, how = C.sindy_best_data(ps, scene, X_raw, Xt)
+    start = time.perf_counter()
+    threshold, scores = C.cv_sindy_threshold(
+        ps, states, derivatives, scene.dt, degree, fourier, periodic,
+        thresholds=C.SINDY_BEST_THRESHOLDS[::2] if args.quick else C.SINDY_BEST_THRESHOLDS,
+        folds=2 if args.quick else 3, one_array=scene.sindy_one_array)
+    n_models = 5 if args.quick else C.SINDY_ENSEMBLE_MODELS
+    fit_s, model = C.best_time(
+        lambda: C.fit_sindy_best(ps, states, derivatives, scene.dt, threshold, degree, fourier,
+                                 periodic, n_models=n_models, one_array=scene.sindy_one_array),
+        args.repeats)
+    select_s = time.perf_counter() - start
+    library = dict(fourier=fourier, periodic=periodic)
+    field = C.SindyField(model, np.concatenate(states)[:200], **library)
+    cond = C.design_condition(model, Xt, field)
+    library_note = (f"degree {degree} in p x sin/cos up to frequency {fourier} per angle"
+                    if fourier is not None else f"PolynomialLibrary(degree={degree})")
+    note = (f"threshold={threshold:g} by 3-fold CV (mean held-out MSE " + ", ".join(
+        f"{k:g}: {v:.3g}" for k, v in scores.items()) + f"); {library_note}; {how}; "
+        f"EnsembleOptimizer(bagging, {n_models} models)")
+    sindy_simulate(scene, args, model, field, x0, t, u0, "PySINDy-best-RK4", deriv_s + fit_s,
+                   cond, note, add, rows)
+    rows[-1]["select_s"] = select_s
+    return rows[-1]
+
+
+def sindy_simulate(scene, args, model, field, x0, t, u0, label, fit_s, cond, note, add, rows):
+    """Roll a fitted PySINDy model out (vectorized RK4), time it through predict; adds the row."""
+    Y, fail_time = C.rollout(field, x0, t)
+    if args.quick:
+        # predict costs ~3 ms a call: too slow for a smoke run, so time the
+        # (identical) vectorized evaluation instead and say so.
+        sim_s, _ = C.best_time(lambda: C.rk4_rollout(field, u0, t), args.repeats)
+        note += "; quick: timed vectorized RK4, not predict"
+    else:
+        def predict(y):
+            # predict refuses non-finite states and features (sklearn's check):
+            # a model that blows up inside an RK4 step then fails like the
+            # vectorized one, with NaN.
+            try:
+                return np.asarray(model.predict(y))
+            except ValueError:
+                return np.full_like(y, np.nan)
+
+        steps = min(scene.sindy_predict_steps or PREDICT_STEPS, t.size - 1)
+        sim_s, (Y_predict, _) = C.best_time(
+            lambda: C.rk4_rollout(predict, u0, t[: steps + 1]), 1)
+        sim_s *= (t.size - 1) / steps
+        head = Y[0, : steps + 1]
+        gap = np.nanmax(np.abs(Y_predict[0] - head)) if np.isfinite(head).any() else 0.0
+        note += f"; |RK4(predict) - RK4(vectorized)| = {gap:.1e}"
+        if steps < t.size - 1:
+            note += f" (predict timed on {steps} steps, scaled to {t.size - 1})"
+    add(label, None, fit_s, sim_s, Y, fail_time, field.n_params, cond, note)
+    # The same model and RK4 without predict's per-call overhead: what the
+    # model itself costs, to separate it from the API.
+    rows[-1]["sim_vectorized_s"], _ = C.best_time(lambda: C.rk4_rollout(field, u0, t),
+                                                  args.repeats)
 
 
 def sindy_rows(scene, args, ps, system, Xt, deriv_s, x0, t, u0, label, fourier, add, rows):
@@ -294,7 +399,6 @@ def sindy_rows(scene, args, ps, system, Xt, deriv_s, x0, t, u0, label, fourier, 
                             one_array=scene.sindy_one_array, **library), args.repeats)
     field = C.SindyField(model, np.concatenate(C.split_layout(Xt)[0])[:200], **library)
     cond = C.design_condition(model, Xt, field)
-    Y, fail_time = C.rollout(field, x0, t)
     note = f"threshold={threshold:g} (held-out MSE " + ", ".join(
         f"{k:g}: {v:.3g}" for k, v in scores.items()) + ")"
     if fourier is not None:
@@ -303,35 +407,8 @@ def sindy_rows(scene, args, ps, system, Xt, deriv_s, x0, t, u0, label, fourier, 
         note += f"; PolynomialLibrary(degree={degree})"
     if scene.sindy_one_array:
         note += "; states as one array"
-    if args.quick:
-        # predict costs ~3 ms a call: too slow for a smoke run, so time the
-        # (identical) vectorized evaluation instead and say so.
-        sim_s, _ = C.best_time(lambda: C.rk4_rollout(field, u0, t), args.repeats)
-        note += "; quick: timed vectorized RK4, not predict"
-    else:
-        def predict(y):
-            # predict refuses non-finite states and features (sklearn's check):
-            # a model that blows up inside an RK4 step then fails like the
-            # vectorized one, with NaN.
-            try:
-                return np.asarray(model.predict(y))
-            except ValueError:
-                return np.full_like(y, np.nan)
-
-        steps = min(scene.sindy_predict_steps or t.size - 1, t.size - 1)
-        sim_s, (Y_predict, _) = C.best_time(
-            lambda: C.rk4_rollout(predict, u0, t[: steps + 1]), 1)
-        sim_s *= (t.size - 1) / steps
-        head = Y[0, : steps + 1]
-        gap = np.nanmax(np.abs(Y_predict[0] - head)) if np.isfinite(head).any() else 0.0
-        note += f"; |RK4(predict) - RK4(vectorized)| = {gap:.1e}"
-        if steps < t.size - 1:
-            note += f" (predict timed on {steps} steps, scaled to {t.size - 1})"
-    add(label, None, deriv_s + fit_s, sim_s, Y, fail_time, field.n_params, cond, note)
-    # The same model and RK4 without predict's per-call overhead: what the
-    # model itself costs, to separate it from the API.
-    rows[-1]["sim_vectorized_s"], _ = C.best_time(lambda: C.rk4_rollout(field, u0, t),
-                                                  args.repeats)
+    sindy_simulate(scene, args, model, field, x0, t, u0, label, deriv_s + fit_s, cond, note,
+                   add, rows)
     return model, threshold, rows[-1]
 
 
@@ -349,31 +426,33 @@ def ratios(rows):
                 out.append(dict(scene=scene, ratio=label, value=float(value)))
 
         ratio("fit: SP / non-SP", "SP-RK4", "non-SP-RK4", "fit_s")
-        ratio("fit: SP / PySINDy", "SP-RK4", "PySINDy-RK4", "fit_s")
+        ratio("fit: SP / PySINDy-poly", "SP-RK4", "PySINDy-poly-RK4", "fit_s")
         ratio("simulate: SP-AVF / SP-RK4", "SP-AVF", "SP-RK4", "sim_s")
         ratio("simulate: SP-RK4 / non-SP-RK4", "SP-RK4", "non-SP-RK4", "sim_s")
-        ratio("simulate: SP-RK4 / PySINDy-RK4(predict)", "SP-RK4", "PySINDy-RK4", "sim_s")
+        ratio("simulate: SP-RK4 / PySINDy-poly-RK4(predict)", "SP-RK4", "PySINDy-poly-RK4",
+              "sim_s")
         ratio("simulate: SP-RK4 / PySINDy-LSODA", "SP-RK4", "PySINDy-LSODA", "sim_s")
-        if "PySINDy-RK4" in by and "SP-RK4" in by:
-            out.append(dict(scene=scene, ratio="simulate: SP-RK4 / PySINDy-RK4(vectorized)",
-                            value=by["SP-RK4"]["sim_s"] / by["PySINDy-RK4"]["sim_vectorized_s"]))
+        ratio("simulate: SP-sparse / SP-RK4 (dense)", "SP-sparse-RK4", "SP-RK4", "sim_s")
         ratio("err T=20 u0*: SP-RK4 / non-SP", "SP-RK4", "non-SP-RK4", "err_T20")
-        ratio("err T=20 u0*: SP-RK4 / PySINDy-RK4", "SP-RK4", "PySINDy-RK4", "err_T20")
         ratio("err T=20 fresh: SP-RK4 / non-SP", "SP-RK4", "non-SP-RK4", "fresh_err_T20")
-        ratio("err T=20 fresh: SP-RK4 / PySINDy-RK4", "SP-RK4", "PySINDy-RK4", "fresh_err_T20")
-        # Scenes with angles: PySINDy with a library shaped like the SP space.
-        ratio("fit: SP / PySINDy-Fourier", "SP-RK4", "PySINDy-Fourier-RK4", "fit_s")
-        ratio("err T=20 u0*: SP-RK4 / PySINDy-Fourier-RK4", "SP-RK4", "PySINDy-Fourier-RK4",
-              "err_T20")
-        ratio("err T=20 fresh: SP-RK4 / PySINDy-Fourier-RK4", "SP-RK4", "PySINDy-Fourier-RK4",
-              "fresh_err_T20")
+        # The sparse rows against each other and against the dense fit.
+        for key, where in (("err_T20", "u0*"), ("fresh_err_T20", "fresh")):
+            for other in ("SP-RK4", "non-SP-STLSQ-RK4", "PySINDy-best-RK4",
+                          "PySINDy-poly-RK4"):
+                ratio(f"err T=20 {where}: SP-sparse / {other.replace('-RK4', '')}",
+                      "SP-sparse-RK4", other, key)
+        ratio("fit: SP-sparse / PySINDy-best (selection excluded)", "SP-sparse-RK4",
+              "PySINDy-best-RK4", "fit_s")
+        ratio("fit + selection: SP-sparse / PySINDy-best", "SP-sparse-RK4", "PySINDy-best-RK4",
+              "select_s")
         # Separable scenes: the explicit symplectic method against RK4.
         ratio("simulate: SP-LEAPFROG / SP-RK4", "SP-LEAPFROG", "SP-RK4", "sim_s")
     return out
 
 
 MARKERS = {"SP-RK4": "o", "SP-AVF": "s", "SP-LEAPFROG": "P", "non-SP-RK4": "^",
-           "PySINDy-RK4": "D", "PySINDy-Fourier-RK4": "*", "PySINDy-LSODA": "v"}
+           "SP-sparse-RK4": "p", "non-SP-STLSQ-RK4": "<", "PySINDy-best-RK4": "*",
+           "PySINDy-poly-RK4": "D", "PySINDy-LSODA": "v"}
 
 
 def plot_charts(rows, output):

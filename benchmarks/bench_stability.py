@@ -75,18 +75,21 @@ COLUMNS = [
     "n_failed", "fail_time", "n_escaped", "escape_time", "blowup_time", "cond", "n_params",
     "n_equations", "note",
 ]
-METHODS = ("SP-RK4", "SP-AVF", "non-SP-RK4", "PySINDy-RK4")
+METHODS = ("SP-RK4", "SP-AVF", "SP-sparse-RK4", "non-SP-RK4", "non-SP-STLSQ-RK4",
+           "PySINDy-best-RK4", "PySINDy-poly-RK4")
 STYLE = {
     "SP-RK4": dict(color="tab:blue", marker="o"),
     "SP-AVF": dict(color="tab:cyan", marker="s", ls="--", mfc="none"),
+    "SP-sparse-RK4": dict(color="tab:purple", marker="p"),
     "non-SP-RK4": dict(color="tab:orange", marker="^"),
-    "PySINDy-RK4": dict(color="tab:green", marker="D"),
+    "non-SP-STLSQ-RK4": dict(color="tab:brown", marker="<", ls="--"),
+    "PySINDy-best-RK4": dict(color="tab:red", marker="*"),
+    "PySINDy-poly-RK4": dict(color="tab:green", marker="D", ls=":"),
     "truth": dict(color="k", marker=""),
 }
-# PySINDy's STLSQ threshold in the sweeps. Tuning it at every point would cost
-# minutes; bench_speed_accuracy's held-out rule picked 0.001-0.1 on the paper's
-# scenes (0.01 on the noisy pendulum), and 0 would just be the non-SP fit in
-# a monomial basis.
+# PySINDy-poly's STLSQ threshold in the sweeps (the labelled extra row):
+# fixed, as in the earlier runs; bench_speed_accuracy's held-out rule picked
+# 0.001-0.1 on the paper's scenes (0.01 on the noisy pendulum).
 SINDY_THRESHOLD = 0.01
 # Corollary 3.4 with r = 1: K_N <= lambda K / log K, lambda = (3 log 1.5 - 1) / 4.
 COROLLARY_R = 1.0
@@ -101,6 +104,13 @@ def parse_args(argv=None):
     parser.add_argument("--no-sindy", action="store_true", help="skip PySINDy even if installed")
     parser.add_argument("--replot", action="store_true",
                         help="only redraw the charts from stability_plot.pickle in --output")
+    parser.add_argument("--experiments", nargs="+", choices=EXPERIMENTS, default=EXPERIMENTS,
+                        help="run only these experiments (default all; the overview "
+                        "stability.png needs all)")
+    parser.add_argument("--n-fresh", type=int, default=4,
+                        help="fresh test states of the sweeps (default 4)")
+    parser.add_argument("--n-fresh-long", type=int, default=8,
+                        help="fresh test states of the long-horizon panel (default 8)")
     return parser.parse_args(argv)
 
 
@@ -162,10 +172,19 @@ class Unfit(Exception):
     """A method could not be fitted (e.g. fewer equations than unknowns)."""
 
 
-def fit_all(scene, Xt, ps):
-    """Fit each method; returns {method: (model, cond, n_params, n_equations) or Unfit}."""
+def fit_all(scene, Xt, ps, X=None, quick=False):
+    """Fit each method; returns {method: (model, cond, n_params, n_equations) or Unfit}.
+
+    Every method works in the panel's polynomial space of degree ``n``: the
+    dense fits, the sparse fits (threshold by ``GridSearchCV``, see
+    :func:`_common.fit_sparse`), PySINDy-best (``PolynomialLibrary(n)``,
+    smoothed derivatives on noisy data, bagging, threshold by CV; ``X`` are
+    the raw trajectories it differentiates) and PySINDy-poly (fixed
+    threshold, our derivatives).
+    """
     K = sum(len(s) for s in C.split_layout(Xt)[0])
     m = Xt[0].shape[1] // 3
+    M = len(Xt)
     fitted = {}
     for name, cls in (("SP", HamiltonianRegressor), ("non-SP", VectorFieldRegressor)):
         with warnings.catch_warnings():
@@ -178,11 +197,33 @@ def fit_all(scene, Xt, ps):
                 info = Unfit(str(error).split(":")[0])
         for method in ("rk4", "avf") if name == "SP" else ("rk4",):
             fitted[f"{name}-{method.upper()}"] = (info, method)
+    for name, cls in (("SP-sparse", HamiltonianRegressor), ("non-SP-STLSQ", VectorFieldRegressor)):
+        # Fewer trajectories than folds: one trajectory per fold.
+        try:
+            model, threshold, _, _, _ = C.fit_sparse(
+                cls(scene.degree), Xt,
+                C.SPARSE_THRESHOLDS[::2] if quick else C.SPARSE_THRESHOLDS,
+                cv=min(2 if quick else 5, M))
+            info = (model, float(model.cond_), int(model.n_terms_),
+                    K * m if name == "SP-sparse" else K)
+        except ValueError as error:
+            info = Unfit(str(error).split(":")[0])
+        fitted[f"{name}-RK4"] = (info, "rk4")
     if ps is not None:
+        states, derivatives, _, _ = C.sindy_best_data(ps, scene, X, Xt)
+        threshold, _ = C.cv_sindy_threshold(
+            ps, states, derivatives, scene.dt, scene.degree,
+            thresholds=C.SINDY_BEST_THRESHOLDS[::2] if quick else C.SINDY_BEST_THRESHOLDS,
+            folds=min(2 if quick else 3, M))
+        model = C.fit_sindy_best(ps, states, derivatives, scene.dt, threshold, scene.degree,
+                                 n_models=5 if quick else C.SINDY_ENSEMBLE_MODELS)
+        field = C.SindyField(model, np.concatenate(states)[:200])
+        fitted["PySINDy-best-RK4"] = (
+            (field, C.design_condition(model, Xt), field.n_params, K), "rk4")
         model = C.fit_sindy(ps, Xt, scene.degree, SINDY_THRESHOLD, scene.dt)
         field = C.SindyField(model, np.concatenate(C.split_layout(Xt)[0])[:200])
-        fitted["PySINDy-RK4"] = ((field, C.design_condition(model, Xt), field.n_params, K),
-                                 "rk4")
+        fitted["PySINDy-poly-RK4"] = (
+            (field, C.design_condition(model, Xt), field.n_params, K), "rk4")
     return fitted
 
 
@@ -227,14 +268,15 @@ def sweep(experiment, param, values, make_scene, ps, cfg, extra=None):
     tests = {}
     for value in values:
         scene = make_scene(value)
-        system, Xt, _ = C.make_data(scene)
+        system, Xt, _, X = C.make_data(scene, raw=True)
         if scene.system not in tests:
             tests[scene.system] = C.test_states(system, cfg["n_fresh"], cfg["horizon"], cfg["h"])
         x0, t, truth = tests[scene.system]
         base = dict(experiment=experiment, param=param, value=value)
         if extra:
             base.update(extra(value))
-        new, _ = evaluate(fit_all(scene, Xt, ps), x0, truth, t, cfg["horizon"], base,
+        new, _ = evaluate(fit_all(scene, Xt, ps, X, cfg["quick"]), x0, truth, t,
+                          cfg["horizon"], base,
                           training_box(Xt))
         rows += new
         print(f"  {param}={value}: " + ", ".join(
@@ -249,11 +291,12 @@ def long_horizon(ps, cfg):
     for noise in cfg["long_noises"]:
         scene = C.Scene(f"Henon-Heiles {noise:.0%}", "henon_heiles", 3, cfg["M"], 40,
                         noise=noise)
-        system, Xt, _ = C.make_data(scene)
+        system, Xt, _, X = C.make_data(scene, raw=True)
         x0, t, truth = C.test_states(system, cfg["n_fresh_long"], cfg["long_horizon"],
                                      cfg["h_long"])
         base = dict(experiment="long_horizon", param="noise", value=noise)
-        new, c = evaluate(fit_all(scene, Xt, ps), x0, truth, t, cfg["long_horizon"], base,
+        new, c = evaluate(fit_all(scene, Xt, ps, X, cfg["quick"]), x0, truth, t,
+                          cfg["long_horizon"], base,
                           training_box(Xt))
         rows += new
         curves[noise] = (t, truth, c)
@@ -266,7 +309,7 @@ def long_horizon(ps, cfg):
 def cherry_blowup(ps, cfg):
     """Blow-up times of the learned Cherry systems against the truth's."""
     scene = C.Scene("Cherry", "cherry", 3, cfg["M"], 2)
-    system, Xt, _ = C.make_data(scene)
+    system, Xt, _, X = C.make_data(scene, raw=True)
     t = np.arange(0.0, cfg["cherry_horizon"] + cfg["h"] / 2, cfg["h"])
     u0 = system.initial_state[None]
     truth, truth_fail = C.reference(system, u0, t)
@@ -280,7 +323,7 @@ def cherry_blowup(ps, cfg):
     rows = [dict(experiment="cherry_blowup", method="truth", param="u0", value="u0*",
                  status="blows up", blowup_time=t_true, fail_time=float(truth_fail[0]),
                  horizon=t[-1], n_test=1)]
-    for name, (info, method) in fit_all(scene, Xt, ps).items():
+    for name, (info, method) in fit_all(scene, Xt, ps, X, cfg["quick"]).items():
         model, cond, n_params, n_eq = info
         Y, fail_time = C.rollout(model, u0, t, method)
         # Error only where the truth is still tame (|u| < 1 up to t = 25).
@@ -480,6 +523,11 @@ def _panel_cherry(ax, rows, long_curves, cherry, cor, cfg):
 PANELS = (("noise", _panel_noise), ("trajectories", _panel_trajectories),
           ("conditioning", _panel_conditioning), ("degree", _panel_degree),
           ("long_horizon", _panel_long_horizon), ("cherry", _panel_cherry))
+# The experiment each panel draws (for runs of some experiments only).
+PANEL_EXPERIMENT = {"noise": "noise", "trajectories": "n_trajectories",
+                    "conditioning": "n_trajectories", "degree": "degree",
+                    "long_horizon": "long_horizon", "cherry": "cherry_blowup"}
+EXPERIMENTS = ("noise", "n_trajectories", "degree", "long_horizon", "cherry_blowup")
 FAILURE_KEY = ("Error panels: above the dotted line, bold x = most rollouts failed (non-finite; "
                "t = first failure), thin x = could not be fitted (fewer equations than unknowns); "
                "on a curve, x = some rollouts failed (k/n), o = a rollout left the training box.")
@@ -494,19 +542,23 @@ def plot(rows, long_curves, cherry, cor, cfg, path):
     """
     global FONT_SCALE
     FONT_SCALE = 1.0
-    fig, axes = plt.subplots(2, 3, figsize=(17, 10))
-    for ax, (_, draw) in zip(axes.flat, PANELS):
-        draw(ax, rows, long_curves, cherry, cor, cfg)
-    fig.suptitle("Where the methods fail (failures marked, not dropped)", fontsize=12)
-    fig.text(0.5, 0.004, FAILURE_KEY, ha="center", va="bottom", fontsize=8.5, color="0.25")
-    fig.tight_layout(rect=(0, 0.02, 1, 1))
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
+    ran = {r["experiment"] for r in rows}
+    panels = [(name, draw) for name, draw in PANELS if PANEL_EXPERIMENT[name] in ran]
+    if len(panels) == len(PANELS):  # the overview needs every panel
+        fig, axes = plt.subplots(2, 3, figsize=(17, 10))
+        for ax, (_, draw) in zip(axes.flat, PANELS):
+            draw(ax, rows, long_curves, cherry, cor, cfg)
+        fig.suptitle("Where the methods fail (failures marked, not dropped)", fontsize=12)
+        fig.text(0.5, 0.004, FAILURE_KEY, ha="center", va="bottom", fontsize=8.5,
+                 color="0.25")
+        fig.tight_layout(rect=(0, 0.02, 1, 1))
+        fig.savefig(path, dpi=110)
+        plt.close(fig)
     FONT_SCALE = 1.6
     try:
         with plt.rc_context({"font.size": 13, "axes.titlesize": 14, "axes.labelsize": 13,
                              "xtick.labelsize": 12, "ytick.labelsize": 12}):
-            for name, draw in PANELS:
+            for name, draw in panels:
                 fig, ax = plt.subplots(figsize=(10, 6.2))
                 draw(ax, rows, long_curves, cherry, cor, cfg)
                 # In the overview one legend serves the row; alone, each
@@ -545,11 +597,18 @@ def pivot(rows, experiment, with_cond=False):
         line = {"param": f"{sub[0]['param']}={value:g}"}
         line.update({m: cell(by[m]) for m in methods if m in by})
         if with_cond:
-            line["cond SP / non-SP / PySINDy"] = " / ".join(
+            line["cond SP / non-SP / PySINDy-poly"] = " / ".join(
                 C.fmt(by[m].get("cond", np.nan), 2) if m in by else "-"
-                for m in ("SP-RK4", "non-SP-RK4", "PySINDy-RK4") if m in methods)
+                for m in ("SP-RK4", "non-SP-RK4", "PySINDy-poly-RK4") if m in methods)
+        # Kept terms of the sparse fits (SP-sparse's unknowns, the nonzero
+        # coefficients of the others).
+        line["terms sparse / STLSQ / best"] = " / ".join(
+            C.fmt(by[m].get("n_params", np.nan)) if m in by and by[m]["status"] != "unfit"
+            else "-" for m in ("SP-sparse-RK4", "non-SP-STLSQ-RK4", "PySINDy-best-RK4")
+            if m in methods)
         table.append(line)
-    columns = ["param"] + methods + (["cond SP / non-SP / PySINDy"] if with_cond else [])
+    columns = ["param"] + methods + (["cond SP / non-SP / PySINDy-poly"] if with_cond else [])
+    columns.append("terms sparse / STLSQ / best")
     C.print_table(table, columns)
 
 
@@ -566,46 +625,56 @@ def main(argv=None):
     if args.quick:
         cfg = dict(M=60, n_fresh=1, horizon=20.0, h=0.02, noises=(0.0, 0.2),
                    Ms=(300, 10, 4), degrees=(3, 8, 13), long_noises=(0.2,),
-                   n_fresh_long=1, long_horizon=10.0, h_long=0.05, cherry_horizon=30.0)
+                   n_fresh_long=1, long_horizon=10.0, h_long=0.05, cherry_horizon=30.0,
+                   quick=True)
     else:
-        cfg = dict(M=500, n_fresh=4, horizon=20.0, h=0.01,
+        cfg = dict(M=500, n_fresh=args.n_fresh, horizon=20.0, h=0.01,
                    noises=(0.0, 0.01, 0.02, 0.05, 0.1, 0.2),
                    Ms=(1000, 300, 100, 50, 30, 20, 15, 12, 10, 8, 6, 5, 4),
                    degrees=tuple(range(2, 15)), long_noises=(0.05, 0.2),
-                   n_fresh_long=8, long_horizon=200.0, h_long=0.02, cherry_horizon=40.0)
+                   n_fresh_long=args.n_fresh_long, long_horizon=200.0, h_long=0.02,
+                   cherry_horizon=40.0, quick=False)
     start = time.perf_counter()
     print(f"# bench_stability {'--quick ' if args.quick else ''}"
           f"{datetime.datetime.now().isoformat(timespec='seconds')}; numpy {np.__version__}, "
           f"{os.cpu_count()} cores, BLAS threads pinned to 1")
     print(f"# PySINDy rows skipped: {reason}" if ps is None
-          else f"# baseline: {reason}, STLSQ threshold {SINDY_THRESHOLD}")
+          else f"# baseline: {reason}; PySINDy-poly STLSQ threshold {SINDY_THRESHOLD}")
     rows = []
 
-    print("# noise sweep", flush=True)
-    rows += sweep("noise", "noise", cfg["noises"],
-                  lambda v: C.Scene("Henon-Heiles", "henon_heiles", 3, cfg["M"], 40, noise=v),
-                  ps, cfg)
+    todo = set(args.experiments)
+    long_curves, cherry, cor = {}, None, None
+    if "noise" in todo:
+        print("# noise sweep", flush=True)
+        rows += sweep("noise", "noise", cfg["noises"],
+                      lambda v: C.Scene("Henon-Heiles", "henon_heiles", 3, cfg["M"], 40,
+                                        noise=v),
+                      ps, cfg)
 
-    k_n = christoffel_sup(load_system("single_pendulum").domain, 6)
-    K = corollary_pairs(k_n)
-    cor = dict(K_N=k_n, K=K, M=K / 3)
-    print(f"# fewer trajectories (Corollary 3.4, r=1: K_N={k_n:.1f} for n=6 -> "
-          f"K >= {K:.0f} pairs, M >= {K / 3:.0f} at J=2)", flush=True)
-    rows += sweep("n_trajectories", "M", cfg["Ms"],
-                  lambda v: C.Scene("pendulum", "single_pendulum", 6, v, 2), ps, cfg,
-                  extra=lambda v: dict(note=f"K={3 * v} pairs; Cor. 3.4 wants K>={K:.0f}"))
+    if "n_trajectories" in todo:
+        k_n = christoffel_sup(load_system("single_pendulum").domain, 6)
+        K = corollary_pairs(k_n)
+        cor = dict(K_N=k_n, K=K, M=K / 3)
+        print(f"# fewer trajectories (Corollary 3.4, r=1: K_N={k_n:.1f} for n=6 -> "
+              f"K >= {K:.0f} pairs, M >= {K / 3:.0f} at J=2)", flush=True)
+        rows += sweep("n_trajectories", "M", cfg["Ms"],
+                      lambda v: C.Scene("pendulum", "single_pendulum", 6, v, 2), ps, cfg,
+                      extra=lambda v: dict(note=f"K={3 * v} pairs; Cor. 3.4 wants K>={K:.0f}"))
 
-    print("# degree sweep (M=30, J=2)", flush=True)
-    rows += sweep("degree", "degree", cfg["degrees"],
-                  lambda v: C.Scene("pendulum", "single_pendulum", v, 30, 2), ps, cfg)
+    if "degree" in todo:
+        print("# degree sweep (M=30, J=2)", flush=True)
+        rows += sweep("degree", "degree", cfg["degrees"],
+                      lambda v: C.Scene("pendulum", "single_pendulum", v, 30, 2), ps, cfg)
 
-    print(f"# long horizon T={cfg['long_horizon']:g}", flush=True)
-    new, long_curves = long_horizon(ps, cfg)
-    rows += new
+    if "long_horizon" in todo:
+        print(f"# long horizon T={cfg['long_horizon']:g}", flush=True)
+        new, long_curves = long_horizon(ps, cfg)
+        rows += new
 
-    print(f"# Cherry blow-up, T={cfg['cherry_horizon']:g}", flush=True)
-    new, cherry = cherry_blowup(ps, cfg)
-    rows += new
+    if "cherry_blowup" in todo:
+        print(f"# Cherry blow-up, T={cfg['cherry_horizon']:g}", flush=True)
+        new, cherry = cherry_blowup(ps, cfg)
+        rows += new
 
     for r in rows:
         for key in COLUMNS:
@@ -622,19 +691,22 @@ def main(argv=None):
         ("n_trajectories", "fewer trajectories (pendulum, J=2, n=6)", True),
         ("degree", "degree (pendulum, M=30, J=2)", True),
     ):
-        print(f"\n## {title}")
-        pivot(rows, experiment, with_cond)
-    print(f"\n## long horizon (Henon-Heiles, T={cfg['long_horizon']:g}): failed / escaped "
-          "test states")
-    C.print_table([r for r in rows if r["experiment"] == "long_horizon"],
-                  ["method", "value", "n_test", "n_failed", "fail_time", "n_escaped",
-                   "escape_time", "error"],
-                  ["method", "noise", "n_test", "n_failed", "first_fail_t", "n_escaped",
-                   "first_escape_t", "median_err"])
-    print("\n## Cherry from u0*: blow-up (|u| > 10) and non-finite times")
-    C.print_table([r for r in rows if r["experiment"] == "cherry_blowup"],
-                  ["method", "blowup_time", "fail_time", "error", "n_params"],
-                  ["method", "blowup_t", "nonfinite_t", "err_0_25", "n_params"])
+        if experiment in todo:
+            print(f"\n## {title}")
+            pivot(rows, experiment, with_cond)
+    if "long_horizon" in todo:
+        print(f"\n## long horizon (Henon-Heiles, T={cfg['long_horizon']:g}): failed / "
+              "escaped test states")
+        C.print_table([r for r in rows if r["experiment"] == "long_horizon"],
+                      ["method", "value", "n_test", "n_failed", "fail_time", "n_escaped",
+                       "escape_time", "error"],
+                      ["method", "noise", "n_test", "n_failed", "first_fail_t", "n_escaped",
+                       "first_escape_t", "median_err"])
+    if "cherry_blowup" in todo:
+        print("\n## Cherry from u0*: blow-up (|u| > 10) and non-finite times")
+        C.print_table([r for r in rows if r["experiment"] == "cherry_blowup"],
+                      ["method", "blowup_time", "fail_time", "error", "n_params"],
+                      ["method", "blowup_t", "nonfinite_t", "err_0_25", "n_params"])
     print(f"# wrote {args.output}/stability.csv, stability.png in "
           f"{time.perf_counter() - start:.0f} s")
     return 0
