@@ -198,7 +198,10 @@ def test_scale_quick(tmp_path):
     assert {r["group"] for r in rows} == {"evaluation", "simulation", "fit", "solver choice",
                                           "scaling"}
     for r in rows:
-        assert math.isfinite(float(r["value"])) and float(r["value"]) > 0, r
+        assert math.isfinite(float(r["value"])), r
+        # Times and ratios are positive; a fitted slope of timings at the quick
+        # mode's tiny sizes is noise and may have either sign.
+        assert r["unit"] == "slope" or float(r["value"]) > 0, r
         # A target is either reported met or not, never silently dropped.
         assert (r["target"] == "") == (r["met"] == ""), r
         assert r["met"] in ("", "yes", "no"), r
