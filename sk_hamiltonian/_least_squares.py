@@ -360,23 +360,23 @@ class _ReducedSolve:
         rows[block.indices] = True
         terms_of = block[np.flatnonzero(rows)]
         n_terms = int(kept.sum())
-        active = np.ones(self._n_tail, dtype=bool)
-        fixed = 0
-        while True:
+
+        def solve_reduced(columns):
+            # ``columns``: the kept terms (all True), then the active frictions.
+            active = columns[n_terms:]
             basis = terms_of
             if active.any():
                 basis = sparse.block_diag(
                     [terms_of, sparse.identity(int(active.sum()))], format="csc"
                 )
-            u, cond, rank = self._solve(np.concatenate([rows, active]), basis)
-            tail = np.zeros((self._n_tail,) + u.shape[1:])
-            tail[active] = u[n_terms:]
-            if not self._n_tail or tail.min() >= 0:
-                # As in solve_nonnegative_tail: a friction fixed at zero by
-                # its constraint is determined, not lost rank.
-                return u[:n_terms], tail, cond, rank + fixed
-            active[int(np.argmin(tail))] = False
-            fixed += 1
+            return self._solve(np.concatenate([rows, active]), basis)
+
+        if not self._n_tail:
+            u, cond, rank = solve_reduced(np.ones(n_terms, dtype=bool))
+            return u, u[:0], cond, rank
+        # Friction stays >= 0 by the same active set as the dense fit.
+        u, cond, rank = solve_nonnegative_tail(solve_reduced, n_terms + self._n_tail, self._n_tail)
+        return u[:n_terms], u[n_terms:], cond, rank
 
 
 class _Part:
