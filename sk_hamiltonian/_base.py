@@ -94,7 +94,7 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
         "momentum_degree": [Interval(Integral, 0, None, closed="left"), None],
         "separable": ["boolean"],
         "max_interaction": [Interval(Integral, 1, None, closed="left"), None],
-        "fit_on": [StrOptions({"derivatives", "steps"})],
+        "fit_on": [StrOptions({"derivatives", "steps", "simpson"})],
         "threshold": [Interval(Real, 0, None, closed="left")],
         "solver": [StrOptions({"auto", "lstsq", "normal", "iterative"})],
         "verbose": ["verbose"],
@@ -189,7 +189,7 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
         X : array-like of shape (n_samples, n_states), or derivative layout
             A chunk of states (with their derivatives in ``y``), or of
             trajectories in the derivative layout; with ``fit_on="steps"``
-            each chunk holds whole trajectories.
+            or ``"simpson"`` each chunk holds whole trajectories.
         y : array-like of shape (n_samples, n_states) or None
             Time derivatives of the states; None with the derivative layout.
         sample_weight : array-like of shape (n_samples,), default=None

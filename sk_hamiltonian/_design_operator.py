@@ -11,14 +11,15 @@ apply both dozens of times without ever holding the design.
 Rows are grouped per sample as ``(n_outputs, K, n_samples)`` arrays:
 ``n_outputs = n_states`` derivative rows of one target for the Hamiltonian
 fit, one value row of ``K`` targets for the vector-field fit. Sample weights
-scale rows by their square roots; a fit on steps averages over the
-Gauss-Legendre nodes of each step; damping adds one column per degree of
+scale rows by their square roots; a row group sums over the weighted
+points of its :class:`~._design.Quadrature` (a step's Gauss-Legendre nodes,
+Simpson's three observations); damping adds one column per degree of
 freedom (see :mod:`._design`).
 """
 
 import numpy as np
 
-from ._design import segment_nodes, symplectic_targets
+from ._design import symplectic_targets
 from ._space.contraction import ContractionPlan
 from ._space.fourier import fourier_moments
 from ._space.legendre import legendre_moments
@@ -37,8 +38,8 @@ class DesignOperator:
         The basis.
     data : TrainingData
         The samples.
-    fit_on : {"derivatives", "steps"}
-        What the rows fit.
+    fit_on : {"derivatives", "steps", "simpson"}
+        What the rows fit (see :mod:`._design`).
     n_nodes : int
         Gauss-Legendre nodes per step (``fit_on="steps"``).
     kind : {"gradient", "value"}
@@ -53,15 +54,9 @@ class DesignOperator:
         self.order = 1 if kind == "gradient" else 0
         self.plan = ContractionPlan(space.columns, space.width)
         m = space.n_states
-        if fit_on == "steps":
-            x0, dx, dt, weight = data.steps(space)
-            rate = dx / dt[:, None]
-            nodes, node_weights = segment_nodes(n_nodes)
-            self.points = [(x0, dx, s, w) for s, w in zip(nodes, node_weights)]
-        else:
-            x0, rate, weight = data.states, data.derivatives, data.sample_weight
-            self.points = [(x0, None, 0.0, 1.0)]
-        self.n_samples = x0.shape[0]
+        self.quadrature = data.quadrature(space, fit_on, n_nodes)
+        rate, weight = self.quadrature.rate, self.quadrature.weight
+        self.n_samples = self.quadrature.n_groups
         self.root = None if weight is None else np.sqrt(weight)
         #: Whether coefficients are 1-D (one target).
         self.one_target = kind == "gradient" or rate.ndim == 1
@@ -87,9 +82,8 @@ class DesignOperator:
         for start in range(0, self.n_samples, CHUNK_SAMPLES):
             yield slice(start, start + CHUNK_SAMPLES)
 
-    def _tables(self, part, x0, dx, s):
-        X = x0[part] if dx is None else x0[part] + s * dx[part]
-        return self.space.factor_tables(X, self.order)
+    def _tables(self, part, X):
+        return self.space.factor_tables(X[part], self.order)
 
     def matvec(self, x):
         """``A x`` for ``x`` of shape (n_columns, K): ndarray (n_outputs, K, n_samples)."""
@@ -97,9 +91,9 @@ class DesignOperator:
         C = self.plan.bind(coef)
         out = np.zeros((self.rows.size, x.shape[1], self.n_samples))
         for part in self._chunks():
-            for x0, dx, s, w in self.points:
-                results, _ = self.plan.contract(self._tables(part, x0, dx, s), C, self.order)
-                out[:, :, part] += w * results[self.rows]
+            for X, w in self.quadrature.points:
+                results, _ = self.plan.contract(self._tables(part, X), C, self.order)
+                out[:, :, part] += self.quadrature.scale(results[self.rows], w, part)
         if self.n_dof:
             d = self.n_dof
             out[d:, 0] += gamma[:, 0, None] * self.friction
@@ -116,10 +110,10 @@ class DesignOperator:
         for part in self._chunks():
             size = min(part.stop, self.n_samples) - part.start
             weights = np.zeros((n_patterns, r.shape[1], size))
-            for x0, dx, s, w in self.points:
-                weights[self.rows] = w * r[:, :, part]
+            for X, w in self.quadrature.points:
+                weights[self.rows] = self.quadrature.scale(r[:, :, part].copy(), w, part)
                 out[: self.space.n_terms] += self.plan.adjoint(
-                    self._tables(part, x0, dx, s), weights, self.order
+                    self._tables(part, X), weights, self.order
                 )
         if self.n_dof:
             d = self.n_dof

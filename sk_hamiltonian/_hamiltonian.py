@@ -62,7 +62,7 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
     max_interaction : int, default=None
         Most state variables one basis function depends on (2: pairwise
         couplings, as in lattices). None: no limit.
-    fit_on : {"derivatives", "steps"}, default="derivatives"
+    fit_on : {"derivatives", "steps", "simpson"}, default="derivatives"
         What the model is fitted to. ``"derivatives"``: the paper's fit, the
         gradient against the estimated time derivatives. ``"steps"``: the
         observed steps ``x0 -> x1`` of the trajectories, so that the
@@ -72,7 +72,13 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
         ones with the polynomial method). Such an ``H~`` is the *modified*
         Hamiltonian of the AVF method at the data step, within ``O(dt**2)`` of
         the true one; :meth:`simulate` then uses AVF at the training step by
-        default. Needs the derivative layout as input.
+        default. ``"simpson"``: each pair of consecutive steps ``x0 -> x1 ->
+        x2``, so that Simpson's rule for the integral of ``J grad H~`` over
+        the pair reproduces ``x2 - x0`` (any two step lengths). Also free of
+        derivative estimates, and exact to ``O(dt**4)``: ``H~`` approximates
+        the true Hamiltonian, not a modified one, and :meth:`simulate` uses
+        RK4 as after a derivative fit. Needs at least three samples per
+        trajectory. Both need the derivative layout as input.
     threshold : float, default=0.0
         Sparsity threshold. 0 fits every basis function (the paper's fit).
         A positive value runs sequentially thresholded least squares (STLSQ)
@@ -229,7 +235,8 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
         n_rows = data.n_rows(self.fit_on) * n_states
         n_unknowns = self._n_terms(n_states)
         if n_rows < n_unknowns:
-            what = "observed steps" if self.fit_on == "steps" else "samples"
+            what = {"steps": "observed steps", "simpson": "pairs of steps"}.get(
+                self.fit_on, "samples")
             raise ValueError(
                 f"The data give {data.n_rows(self.fit_on)} {what}, that is {n_rows} "
                 f"equations for {n_unknowns} unknowns at degree={self.degree}: the "

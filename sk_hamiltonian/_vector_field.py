@@ -46,10 +46,13 @@ class VectorFieldRegressor(BaseTrajectoryRegressor):
         No basis function mixes momenta and positions.
     max_interaction : int, default=None
         Most state variables one basis function depends on; None: no limit.
-    fit_on : {"derivatives", "steps"}, default="derivatives"
+    fit_on : {"derivatives", "steps", "simpson"}, default="derivatives"
         ``"steps"``: fit ``x1 - x0 = dt int_0^1 f(x0 + s (x1 - x0)) ds`` on the
         observed steps instead of estimated derivatives (derivative layout
         input only), the counterpart of the structure-preserving steps fit.
+        ``"simpson"``: fit ``x2 - x0`` over each pair of consecutive steps
+        with Simpson's rule for the integral of ``f`` (exact to
+        ``O(dt**4)``; at least three samples per trajectory).
     threshold : float, default=0.0
         Sparsity threshold, as in :class:`HamiltonianRegressor`, applied to
         each component separately (SINDy's sequentially thresholded least
