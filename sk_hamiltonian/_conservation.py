@@ -6,25 +6,43 @@ trend in time is estimated (one intercept per trajectory, one slope for all):
 its size relative to the spread of ``H~`` over the data, and its z-score. Only
 the states enter, never the estimated derivatives, so a bias of the
 derivative estimate cannot fake or hide a trend.
+
+The spread is taken over the states and over the same states with their
+variables decorrelated (:func:`decorrelated`): along one long trajectory of
+a conservative system ``H~`` barely varies, and a round-off trend would
+otherwise count as a large fraction of a round-off spread.
 """
 
 import numpy as np
 
 
-def energy_trend(energies):
+def decorrelated(states):
+    """The states with each variable's column rotated by a different offset.
+
+    Keeps every variable's values (the data's box) but breaks the relations
+    between them that a conserved energy imposes, deterministically.
+    """
+    n, m = states.shape
+    return np.column_stack([np.roll(states[:, i], (i * n) // m) for i in range(m)])
+
+
+def energy_trend(energies, spread=None):
     """Common trend of ``H~`` in time along several trajectories.
 
     Parameters
     ----------
     energies : list of (ndarray, ndarray)
         ``(times, H~ along the trajectory)`` per trajectory.
+    spread : float, default=None
+        The energy scale of the data the slope is divided by; None: the
+        standard deviation of ``H~`` over all the states.
 
     Returns
     -------
     rate : float
-        Slope of ``H~`` in time divided by the standard deviation of ``H~``
-        over all the states: the fraction of the energy's spread gained per
-        unit time (negative: lost). NaN when no trajectory has two samples.
+        Slope of ``H~`` in time divided by ``spread``: the fraction of the
+        energy's spread gained per unit time (negative: lost). NaN when no
+        trajectory has two samples.
     z : float
         The slope over its standard error; NaN as ``rate``.
     """
@@ -40,7 +58,7 @@ def energy_trend(energies):
     tc = times - (np.bincount(group, times) / lengths)[group]
     hc = values - (np.bincount(group, values) / lengths)[group]
     tt, th = tc @ tc, tc @ hc
-    spread = np.std(values)
+    spread = np.std(values) if spread is None else spread
     if tt == 0 or spread == 0:
         return float("nan"), float("nan")
     slope = th / tt

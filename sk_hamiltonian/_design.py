@@ -90,6 +90,17 @@ class TrainingData:
 
     def pairs(self, space):
         """Pairs of consecutive steps ``(x0, x1, x2, h1, h2, weight)`` of every trajectory."""
+        self._check_pairs()
+        parts = []
+        for k, (t, S) in enumerate(self.trajectories):
+            moves = space.wrap_difference(np.diff(S, axis=0))
+            h = np.diff(t)
+            w = 1.0 if self.trajectory_weight is None else self.trajectory_weight[k]
+            parts.append((S[:-2], S[1:-1], S[2:], moves[:-1] + moves[1:], h[:-1], h[1:],
+                          np.full(S.shape[0] - 2, w)))
+        return tuple(np.concatenate(column) for column in zip(*parts))
+
+    def _check_pairs(self):
         if self.trajectories is None:
             raise ValueError(
                 "fit_on='simpson' fits pairs of observed steps of trajectories: pass "
@@ -104,14 +115,6 @@ class TrainingData:
                 f"fewer (the first is number {short[0]}). Drop them, or fit with "
                 f"fit_on='steps'."
             )
-        parts = []
-        for k, (t, S) in enumerate(self.trajectories):
-            moves = space.wrap_difference(np.diff(S, axis=0))
-            h = np.diff(t)
-            w = 1.0 if self.trajectory_weight is None else self.trajectory_weight[k]
-            parts.append((S[:-2], S[1:-1], S[2:], moves[:-1] + moves[1:], h[:-1], h[1:],
-                          np.full(S.shape[0] - 2, w)))
-        return tuple(np.concatenate(column) for column in zip(*parts))
 
     def quadrature(self, space, fit_on, n_nodes):
         """The :class:`Quadrature` of the fit's row groups."""
@@ -135,8 +138,9 @@ class TrainingData:
         """Number of state (or step) row groups the fit will have."""
         if fit_on == "steps" and self.trajectories is not None:
             return sum(max(0, S.shape[0] - 1) for _, S in self.trajectories)
-        if fit_on == "simpson" and self.trajectories is not None:
-            return sum(max(0, S.shape[0] - 2) for _, S in self.trajectories)
+        if fit_on == "simpson":
+            self._check_pairs()
+            return sum(S.shape[0] - 2 for _, S in self.trajectories)
         return self.states.shape[0]
 
 

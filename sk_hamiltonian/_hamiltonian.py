@@ -6,7 +6,7 @@ import numpy as np
 from sklearn.utils.validation import check_is_fitted
 
 from ._base import BaseTrajectoryRegressor
-from ._conservation import energy_trend
+from ._conservation import decorrelated, energy_trend
 from ._design import column_groups, hamiltonian_blocks, quadrature_nodes
 from ._design_operator import DesignOperator
 from ._integrate import Dynamics, apply_structure
@@ -160,7 +160,10 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
         the rollout score measures errors in these units.
     energy_trend_ : float
         Trend of ``H~`` along the training trajectories: its slope in time
-        over the spread of ``H~`` on the data (NaN when fitted on 2-D states).
+        over the spread of ``H~`` on the data (the larger of its standard
+        deviation over the training states and over the same states with
+        their variables decorrelated, so that one long conservative
+        trajectory has a spread; NaN when fitted on 2-D states).
         Near zero for conservative data, negative when they lose energy.
     energy_trend_z_ : float
         The trend's z-score (slope over its standard error).
@@ -295,9 +298,11 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
             return
         # H~ at every training state in one batch, then split by trajectory.
         lengths = [S.shape[0] for _, S in data.trajectories]
-        energies = np.split(self._hamiltonian(data.states), np.cumsum(lengths)[:-1])
+        values = self._hamiltonian(data.states)
+        energies = np.split(values, np.cumsum(lengths)[:-1])
+        spread = max(np.std(values), np.std(self._hamiltonian(decorrelated(data.states))))
         self.energy_trend_, self.energy_trend_z_ = energy_trend(
-            [(t, H) for (t, _), H in zip(data.trajectories, energies)]
+            [(t, H) for (t, _), H in zip(data.trajectories, energies)], spread=spread
         )
         if not np.isfinite(self.energy_trend_z_):
             return

@@ -55,7 +55,7 @@ def relative(a, b):
     return np.linalg.norm(a - b) / np.linalg.norm(b)
 
 
-@pytest.mark.parametrize("params", [{}, dict(damping=True), dict(fit_on="steps")])
+@pytest.mark.parametrize("params", [{}, dict(damping=True), dict(fit_on="steps"), dict(fit_on="simpson")])
 def test_fit_on_a_dask_layout_gives_the_in_memory_coefficients(client, layout, params):
     reference = HamiltonianRegressor(degree=4, solver="lstsq", **params).fit(layout)
     # Chunks that cut trajectories apart are rechunked to whole trajectories.

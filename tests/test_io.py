@@ -128,7 +128,7 @@ def test_vector_field_round_trip_is_exact(tmp_path, pendulum, space):
 
 
 @pytest.mark.parametrize("threshold", [0.0, 0.05])
-@pytest.mark.parametrize("fit_on", ["derivatives", "steps"])
+@pytest.mark.parametrize("fit_on", ["derivatives", "steps", "simpson"])
 @pytest.mark.parametrize("cls", [HamiltonianRegressor, VectorFieldRegressor])
 def test_fit_targets_and_two_degrees_of_freedom(tmp_path, two_dof, cls, fit_on, threshold):
     pipe = fitted(
