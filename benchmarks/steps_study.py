@@ -12,9 +12,14 @@ fits see the same trajectories:
     ``HamiltonianRegressor(fit_on="steps")``: the AVF map at the data step
     reproduces the observed steps; simulated with AVF at the data step (its
     default).
-``non-SP-derivatives`` and ``non-SP-steps``
-    ``VectorFieldRegressor`` fitted the same two ways (the baseline; its steps
-    fit runs its own averaged map at the data step).
+``SP-simpson``
+    ``HamiltonianRegressor(fit_on="simpson")``: Simpson's rule over each pair
+    of consecutive steps reproduces ``x2 - x0`` (the paper's ``J = 2`` gives
+    one pair per trajectory); simulated with RK4 at step dt, as the
+    derivative fits.
+``non-SP-derivatives``, ``non-SP-steps`` and ``non-SP-simpson``
+    ``VectorFieldRegressor`` fitted the same three ways (the baseline; its
+    steps fit runs its own averaged map at the data step).
 
 Each model is rolled out from the paper's u0* up to T = 20 and compared with
 the true solution (RK4 at dt / 10); the table gives each method's relative
@@ -30,6 +35,7 @@ Run::
     python benchmarks/steps_study.py            # all examples (~30 min on 2 cores)
     python benchmarks/steps_study.py --quick    # two degrees each, n = 8 for Ex. 1, M = 5 000 for Ex. 5
     python benchmarks/steps_study.py --examples exponential noisy   # a subset
+    python benchmarks/steps_study.py --methods SP-simpson non-SP-simpson  # some methods
 
 Prints a table and writes ``benchmarks/results/steps_study.csv``.
 """
@@ -54,7 +60,8 @@ from sk_hamiltonian import (  # noqa: E402
 from sk_hamiltonian.datasets import PAPER_DT, load_system, make_trajectories  # noqa: E402
 
 T_END = 20.0
-METHODS = ("SP-derivatives", "SP-steps", "non-SP-derivatives", "non-SP-steps")
+METHODS = ("SP-derivatives", "SP-steps", "SP-simpson", "non-SP-derivatives", "non-SP-steps",
+           "non-SP-simpson")
 CLEAN = {
     "exponential": list(range(4, 15)),
     "henon_heiles": [3, 4, 5, 6],
@@ -65,14 +72,13 @@ CLEAN = {
 
 def make_model(method, degree, domain):
     Regressor = HamiltonianRegressor if method.startswith("SP") else VectorFieldRegressor
-    return Regressor(degree=degree, domain=domain,
-                     fit_on="steps" if method.endswith("steps") else "derivatives")
+    return Regressor(degree=degree, domain=domain, fit_on=method.rsplit("-", 1)[1])
 
 
 def rollout(model, method, x0, t):
-    # The paper's set-up for derivative fits (RK4 at dt); a steps model runs
-    # the map it was fitted to (AVF at the data step, its default).
-    max_step = PAPER_DT if method.endswith("derivatives") else None
+    # The paper's set-up for derivative (and Simpson) fits, RK4 at dt; a steps
+    # model runs the map it was fitted to (AVF at the data step, its default).
+    max_step = None if method.endswith("steps") else PAPER_DT
     return model.simulate(x0, t, max_step=max_step, on_failure="nan")
 
 
@@ -114,7 +120,7 @@ def run_example(name, degrees, n_trajectories=None, Xt=None, methods=METHODS,
     return rows
 
 
-def noisy_pendulum(degrees):
+def noisy_pendulum(degrees, methods):
     system = load_system("single_pendulum")
     s = system.paper_settings
     X = make_trajectories(system, s["n_trajectories"], s["n_intervals"], PAPER_DT,
@@ -123,7 +129,7 @@ def noisy_pendulum(degrees):
     # The noisy data reach |q| ~ 6, beyond the paper's domain: the basis lives
     # on their bounding box, as in the sk-hamiltonian command.
     return run_example("single_pendulum", degrees, Xt=Xt,
-                       methods=("SP-derivatives", "SP-steps"), use_domain=False)
+                       methods=[m for m in methods if m.startswith("SP")], use_domain=False)
 
 
 def best_table(rows):
@@ -148,6 +154,8 @@ def main(argv=None):
     parser.add_argument("--dp-trajectories", type=int, default=None, metavar="M",
                         help="trajectories of the double pendulum (default: the paper's "
                         "20 000; 5 000 with --quick)")
+    parser.add_argument("--methods", nargs="+", default=list(METHODS), choices=METHODS,
+                        help="which fits to run (default: all)")
     args = parser.parse_args(argv)
     rows = []
     for name, degrees in CLEAN.items():
@@ -158,12 +166,12 @@ def main(argv=None):
         M = None
         if name == "double_pendulum":
             M = args.dp_trajectories or (5000 if args.quick else None)
-        rows += run_example(name, degrees, n_trajectories=M)
+        rows += run_example(name, degrees, n_trajectories=M, methods=args.methods)
     # The example's own function would refit with M=500 at the paper's domain;
     # here the domain is the bounding box of the data, as the command does.
     if "noisy" in args.examples:
         rows += [dict(r, example="single_pendulum (noisy)") for r in noisy_pendulum(
-            [8] if args.quick else [8, 10])]
+            [8] if args.quick else [8, 10], args.methods)]
     print("\nEach method at its best degree:")
     print(best_table(rows))
     Path(args.output).mkdir(parents=True, exist_ok=True)
