@@ -1,5 +1,6 @@
 """What the two regressors share: input handling, model space, simulation and scoring."""
 
+import copy
 import warnings
 from numbers import Integral, Real
 
@@ -400,7 +401,7 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
         try:
             solve, norms = column_solver(
                 problem, self.solver_, single_solve=single_solve,
-                fall_back=self.solver == "auto",
+                many_supports=self.threshold > 0, fall_back=self.solver == "auto",
                 progress=self._progress("iteration {0}: relative normal residual {1:.2e}"),
                 block_progress=self._progress("block {0}: {1} equations accumulated"),
                 name=name,
@@ -417,6 +418,54 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
                 block_progress=self._progress("block {0}: {1} equations accumulated"), name=name,
             ))
         self._set_solution(solution)
+
+    def _fit_threshold_path(self, X, thresholds):
+        """Fitted copies of this estimator, one per threshold, from one assembly.
+
+        Each equals ``clone(self).set_params(threshold=t).fit(X)`` up to
+        round-off, but the design (and with ``solver="normal"`` its Gram
+        matrix) is built once: a new support needs only a smaller solve.
+        In-memory data only; the caller falls back to separate fits for dask
+        arrays and when conjugate gradients do not converge.
+
+        Parameters
+        ----------
+        X : derivative layout or array-like of shape (n_samples, n_states)
+            What :meth:`fit` takes (2-D states need ``y``, which this path
+            does not take: pass the derivative layout).
+        thresholds : sequence of float
+            Non-negative thresholds.
+
+        Returns
+        -------
+        models : list of estimators
+            Fitted, in the order of ``thresholds``.
+        """
+        self._validate_params()
+        self._check_integer_params()
+        self._partial = None
+        data = self._training_data(X, None, None)
+        self._set_up_space(data)
+        n_rows = data.n_rows(self.fit_on) * self._rows_per_sample(data.states.shape[1])
+        self.solver_ = choose_solver(self.solver, n_rows, self.powers_.shape[0])
+        problem = LeastSquaresProblem(
+            lambda grouped=False: self._design_blocks(data, grouped=grouped),
+            self._normal_accumulator, lambda: self._design_operator(data),
+            self._n_unknowns(), self._n_nonnegative(),
+        )
+        models = []
+        with limit_blas(gram_flops(n_rows, self._n_unknowns())):
+            solve, norms = column_solver(
+                problem, self.solver_, many_supports=True, fall_back=self.solver == "auto",
+                name=type(self).__name__,
+            )
+            for threshold in thresholds:
+                model = copy.copy(self)
+                model.threshold = float(threshold)
+                model._set_solution(model._fit_support(solve, norms))
+                model._finish_fit(data)
+                models.append(model)
+        return models
 
     def _fit_support(self, solve, column_norms):
         """The support rule of ``threshold`` over a column solver (see :mod:`._least_squares`)."""

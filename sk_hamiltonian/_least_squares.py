@@ -108,8 +108,8 @@ class CGNotConverged(Exception):
     """Conjugate gradients stopped at their cap where a fall-back is allowed."""
 
 
-def column_solver(problem, solver, *, single_solve=False, fall_back=False, progress=None,
-                  block_progress=None, name="estimator"):
+def column_solver(problem, solver, *, single_solve=False, many_supports=False, fall_back=False,
+                  progress=None, block_progress=None, name="estimator"):
     """``solve(keep, basis=None)`` and the column norms of a problem, by one solver.
 
     Parameters
@@ -121,6 +121,13 @@ def column_solver(problem, solver, *, single_solve=False, fall_back=False, progr
     single_solve : bool, default=False
         Whether ``solve`` will be called once only, on all columns: ``"lstsq"``
         may then factorize the design in place instead of a copy.
+    many_supports : bool, default=False
+        Whether ``solve`` will be called on many column sets (a threshold's
+        support iterations, a threshold path): ``"lstsq"`` then reduces the
+        design once to the triangle of its QR factorization, on which every
+        solve and column norm is as on the design (``||A S u - b|| = ||R S u
+        - Q^T b||`` up to a constant, for any column map ``S``) at the cost
+        of a square system.
     fall_back : bool, default=False
         With ``"iterative"``: raise :class:`CGNotConverged` when conjugate
         gradients reach their cap (``solver="auto"`` then uses the normal
@@ -159,6 +166,8 @@ def column_solver(problem, solver, *, single_solve=False, fall_back=False, progr
         return solve_cg, problem.column_norms
     if solver == "lstsq":
         A, b = stack_blocks(problem.blocks(), problem.n_columns)
+        if many_supports and not single_solve:
+            A, b = _triangle(A, b)
 
         def solve_svd(keep, basis=None):
             if single_solve:
@@ -186,6 +195,18 @@ def column_solver(problem, solver, *, single_solve=False, fall_back=False, progr
         return refine
 
     return accumulated_solver(gram, rhs, residual)
+
+
+def _triangle(A, b):
+    """``R`` and ``Q^T b`` from the QR factorization of ``[A | b]``, the design in Fortran order.
+
+    ``b`` lies in the span of ``Q``, so for any ``S`` the residual of ``A S
+    u - b`` has the norm of ``R_A S u - R_b``: least squares on the small
+    triangle gives the same solutions, singular values and rank.
+    """
+    n = A.shape[1]
+    R = np.linalg.qr(np.column_stack([A, b]), mode="r")
+    return np.asfortranarray(R[:, :n]), R[:, n] if b.ndim == 1 else R[:, n:]
 
 
 def accumulated_solver(gram, rhs, residual=None):

@@ -1,12 +1,19 @@
 """The threshold path: model size against cross-validated score, over sparsity thresholds."""
 
+import warnings
+
 import numpy as np
+from scipy.stats import rankdata
 from sklearn.base import clone
-from sklearn.model_selection import GridSearchCV
+from sklearn.exceptions import FitFailedWarning
+from sklearn.metrics import check_scoring
+from sklearn.model_selection import check_cv
 from sklearn.pipeline import Pipeline
-from sklearn.utils import Bunch
+from sklearn.utils import Bunch, _safe_indexing, indexable
+from sklearn.utils.parallel import Parallel, delayed
 
 from ._base import BaseTrajectoryRegressor
+from ._least_squares import CGNotConverged
 
 
 def _threshold_parameter(estimator):
@@ -33,6 +40,12 @@ def threshold_path(estimator, X, thresholds, *, cv=5, scoring=None, n_jobs=None)
     score, and which thresholds tie with the best: those whose mean score is
     within one standard error (of the best candidate's fold scores) of it.
 
+    The scores are those of :class:`~sklearn.model_selection.GridSearchCV`
+    over the threshold with the same folds, but each fold's design (and,
+    with the normal equations, its Gram matrix) is assembled once for the
+    whole path: a new support needs only a smaller solve, so the path costs
+    little more than one dense fit per fold.
+
     Parameters
     ----------
     estimator : HamiltonianRegressor, VectorFieldRegressor or Pipeline
@@ -49,7 +62,8 @@ def threshold_path(estimator, X, thresholds, *, cv=5, scoring=None, n_jobs=None)
     scoring : str or callable, default=None
         None: the estimator's own ``score`` (the honest rollout score).
     n_jobs : int, default=None
-        Parallel fits, as in :class:`~sklearn.model_selection.GridSearchCV`.
+        Folds fitted in parallel (joblib), as in
+        :class:`~sklearn.model_selection.GridSearchCV`.
 
     Returns
     -------
@@ -59,7 +73,9 @@ def threshold_path(estimator, X, thresholds, *, cv=5, scoring=None, n_jobs=None)
         scores over the square root of the number of folds), ``tied`` (bool:
         within one standard error of the best mean score), ``best_index``
         (the best mean score) and ``smallest_tied_index`` (the fewest terms
-        among the tied), and ``cv_results``, the search's ``cv_results_``.
+        among the tied), and ``cv_results``, laid out as ``cv_results_`` of
+        the equivalent search (``params``, ``param_<name>``, the fold
+        scores, their mean, standard deviation and rank).
 
     Raises
     ------
@@ -96,16 +112,19 @@ def threshold_path(estimator, X, thresholds, *, cv=5, scoring=None, n_jobs=None)
             f"thresholds must be a non-empty list of finite numbers >= 0; got {thresholds!r}."
         )
     values = np.unique(values)
-    search = GridSearchCV(
-        estimator, {name: list(values)}, cv=cv, scoring=scoring, refit=False, n_jobs=n_jobs
-    ).fit(X)
-    results = search.cv_results_
-    mean = np.asarray(results["mean_test_score"], dtype=float)
-    n_splits = search.n_splits_
-    error = np.asarray(results["std_test_score"], dtype=float) / np.sqrt(n_splits)
-    n_terms = np.array([
-        _final(clone(estimator).set_params(**{name: v}).fit(X)).n_terms_ for v in values
-    ])
+    X = X if isinstance(X, list) else indexable(X)[0]
+    splitter = check_cv(cv)
+    splits = list(splitter.split(X))
+    scorer = check_scoring(estimator, scoring=scoring)
+    fold_scores = Parallel(n_jobs=n_jobs)(
+        delayed(_fold_scores)(clone(estimator), X, train, test, values, scorer)
+        for train, test in splits
+    )
+    scores = np.array(fold_scores).T  # (threshold, fold)
+    mean = scores.mean(axis=1)
+    std = scores.std(axis=1)
+    error = std / np.sqrt(len(splits))
+    n_terms = np.array([_final(model).n_terms_ for model in _fit_path(clone(estimator), X, values)])
     finite = np.isfinite(mean)
     if not finite.any():
         raise ValueError(
@@ -116,10 +135,55 @@ def threshold_path(estimator, X, thresholds, *, cv=5, scoring=None, n_jobs=None)
     tied = finite & (mean >= mean[best] - error[best])
     tied_indices = np.flatnonzero(tied)
     smallest = int(tied_indices[np.lexsort((-mean[tied], n_terms[tied]))[0]])
+    results = {
+        "params": [{name: float(v)} for v in values],
+        f"param_{name}": np.ma.MaskedArray(values.copy()),
+        **{f"split{k}_test_score": scores[:, k] for k in range(len(splits))},
+        "mean_test_score": mean, "std_test_score": std,
+        "rank_test_score": rankdata(-np.where(finite, mean, -np.inf), method="min").astype(
+            np.int32),
+    }
     return Bunch(
         thresholds=values, n_terms=n_terms, mean_score=mean, std_error=error, tied=tied,
         best_index=best, smallest_tied_index=smallest, cv_results=results,
     )
+
+
+def _fit_path(estimator, X, values):
+    """The estimator fitted at every threshold, sharing one assembly where possible."""
+    steps = estimator.steps[:-1] if isinstance(estimator, Pipeline) else []
+    final = _final(estimator)
+    Xt = X
+    for _, step in steps:
+        if step is not None and step != "passthrough":
+            Xt = step.fit_transform(Xt)
+    try:
+        models = final._fit_threshold_path(Xt, values)
+    except (CGNotConverged, TypeError, ValueError):
+        # Dask arrays, 2-D input without y, or an iterative solve that did
+        # not converge: separate fits give the same models (or the error).
+        models = [clone(final).set_params(threshold=float(v)).fit(Xt) for v in values]
+    if not steps:
+        return models
+    return [Pipeline(steps + [(estimator.steps[-1][0], model)]) for model in models]
+
+
+def _fold_scores(estimator, X, train, test, values, scorer):
+    """Scores of one fold at every threshold (NaN, with a warning, where a fit fails)."""
+    try:
+        models = _fit_path(estimator, _safe_indexing(X, train), values)
+    except Exception as error:  # as GridSearchCV with error_score=np.nan
+        warnings.warn(f"threshold_path: a fold failed to fit: {error!r}", FitFailedWarning)
+        return [np.nan] * len(values)
+    X_test = _safe_indexing(X, test)
+    scores = []
+    for model in models:
+        try:
+            scores.append(float(scorer(model, X_test, None)))
+        except Exception as error:
+            warnings.warn(f"threshold_path: scoring failed: {error!r}", FitFailedWarning)
+            scores.append(np.nan)
+    return scores
 
 
 def _final(estimator):

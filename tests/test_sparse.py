@@ -315,3 +315,21 @@ def test_to_sympy_gives_the_formula():
     assert all(abs(c) < 1e-9 for c in sympy.Poly(difference, p, sympy.cos(q)).coeffs())
     named = to_sympy(model, state_names=["momentum", "angle"])
     assert {s.name for s in named.free_symbols} == {"momentum", "angle"}
+
+
+@pytest.mark.parametrize("solver", ["lstsq", "normal", "iterative"])
+@pytest.mark.parametrize("cls", [HamiltonianRegressor, VectorFieldRegressor])
+def test_one_assembly_path_equals_separate_fits(noisy_pendulum, cls, solver):
+    _, Xt = noisy_pendulum
+    estimator = cls(degree=6, solver=solver, **PENDULUM_SPACE)
+    thresholds = [0.0, 1e-3, 0.03]
+    models = clone(estimator)._fit_threshold_path(Xt, thresholds)
+    for threshold, model in zip(thresholds, models):
+        alone = clone(estimator).set_params(threshold=threshold).fit(Xt)
+        assert model.threshold == threshold
+        assert np.array_equal(model.support_, alone.support_)
+        assert model.n_terms_ == alone.n_terms_
+        assert np.allclose(model.coef_, alone.coef_, rtol=1e-8, atol=1e-10)
+        assert model.time_scale_ == pytest.approx(alone.time_scale_, rel=1e-8)
+        assert np.allclose(model.predict(Xt[:2]), alone.predict(Xt[:2]), rtol=1e-8,
+                           atol=1e-10)
