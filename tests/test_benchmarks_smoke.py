@@ -84,7 +84,8 @@ def test_speed_accuracy_quick(runs):
     assert not any(r["method"].startswith("PySINDy") for r in rows)
     sp = [r for r in rows if r["method"].startswith("SP-")]
     # Leapfrog only for the separable scene (the FPUT chain).
-    assert {r["method"] for r in sp} == {"SP-RK4", "SP-AVF", "SP-LEAPFROG", "SP-sparse-RK4"}
+    assert {r["method"] for r in sp} == {"SP-RK4", "SP-AVF", "SP-LEAPFROG", "SP-sparse-RK4",
+                                         "SP-simpson-RK4"}
     assert {r["scene"] for r in sp if r["method"] == "SP-LEAPFROG"} == {"FPUT chain 4"}
     assert len({r["scene"] for r in sp}) >= 3
     for r in sp:
@@ -121,6 +122,8 @@ def test_speed_accuracy_quick(runs):
     assert columns == ["scene", "ratio", "value"]
     assert any(r["ratio"] == "fit: SP / non-SP" and _finite(r, "value") for r in ratios)
     assert any(r["ratio"] == "err T=20 u0*: SP-sparse / SP" and _finite(r, "value")
+               for r in ratios)
+    assert any(r["ratio"] == "err T=20 u0*: SP-simpson / SP" and _finite(r, "value")
                for r in ratios)
 
 
