@@ -477,6 +477,7 @@ def aggregate(e):
         "shooting - floor": _capped(shot) + float(np.mean(floor)),
         "RMS finished, fail 1": _rms_finished(shot),
         "RMS of excess": 1.0 - float(np.sqrt(np.mean(np.maximum(c**2 - floor**2, 0.0)))),
+        "mean square excess": 1.0 - float(np.mean(c**2 - floor**2)),
         "median - floor": 1.0 - float(np.median(c - floor)),
         "mean of excess/floor": 1.0 - float(np.mean(np.minimum(
             np.maximum(c - floor, 0.0) / np.maximum(floor, 1e-12), 1e3))),
@@ -712,6 +713,7 @@ THRESHOLD_SCORES = {
     "relative": "relative (turn 1)",
     "RMS": "shooting, pooled",
     "RMS excess": "RMS of excess",
+    "MS excess": "mean square excess",
 }
 N_FRESH_PENDULUM = 20
 
