@@ -175,11 +175,11 @@ class Quadrature:
             values *= w[rows]
         return values
 
-    def evaluate(self, evaluate, rows):
-        """``sum_k w_k evaluate(X_k[rows])``, each evaluation with the rows on its last axis."""
+    def weighted_sum(self, function, rows):
+        """``sum_k w_k function(X_k[rows])``, each result with the rows on its last axis."""
         total = None
         for X, w in self.points:
-            part = self.scale(evaluate(X[rows]), w, rows)
+            part = self.scale(function(X[rows]), w, rows)
             total = part if total is None else total + part
         return total
 
@@ -347,7 +347,7 @@ def vector_field_blocks(space, data, fit_on, n_nodes):
     step = _rows_per_block(space.n_terms)
     for start in range(0, quadrature.n_groups, step):
         rows = slice(start, start + step)
-        At, b = quadrature.evaluate(space.values_t, rows), rate[rows]
+        At, b = quadrature.weighted_sum(space.values_t, rows), rate[rows]
         if weight is not None:
             root = np.sqrt(weight[rows])
             At = At * root
