@@ -101,7 +101,7 @@ def bound_flat(space, coef):
         use = np.zeros(3, dtype=np.bool_)
         parts = []
         for order in range(3):
-            flat = space._flat(order)
+            flat = space._flat(order, kernels="numba")
             if flat is None:
                 parts += [np.zeros((0, 1), np.int64), np.zeros(0, np.int64),
                           np.zeros((0, coef2.shape[1]))]

@@ -40,17 +40,15 @@ def fill_tables(x, family, degree, slope, offset, order, T):
                 T[i, 0, 1] = w
             for k in range(1, n):
                 T[i, 0, k + 1] = ((2 * k + 1) / (k + 1)) * w * T[i, 0, k] - (k / (k + 1)) * T[i, 0, k - 1]
-            # P'_{k+1} = P'_{k-1} + (2k + 1) P_k, and the same one order up.
+            # P'_{k+1} = P'_{k-1} + (2k + 1) P_k, and the same one order up,
+            # with the chain-rule factor s**r carried along (no pass of
+            # powers afterwards): row r holds s**r times the r-th derivative.
             for r in range(1, order + 1):
                 T[i, r, 0] = 0.0
                 if n >= 1:
-                    T[i, r, 1] = 1.0 if r == 1 else 0.0
+                    T[i, r, 1] = s if r == 1 else 0.0
                 for k in range(1, n):
-                    T[i, r, k + 1] = T[i, r, k - 1] + (2 * k + 1) * T[i, r - 1, k]
-            for r in range(1, order + 1):
-                factor = s ** r
-                for k in range(n + 1):
-                    T[i, r, k] *= factor
+                    T[i, r, k + 1] = T[i, r, k - 1] + ((2 * k + 1) * s) * T[i, r - 1, k]
         else:
             T[i, 0, 0] = 1.0
             for r in range(1, order + 1):
@@ -155,7 +153,7 @@ def _dense_sum(pad, table, out, n_parents):
                 out[p] += pad[c * n_parents + p] * t
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline="always")
 def flat_contract(T, keys, rows, W, root):
     """The flat contraction (:mod:`sk_hamiltonian._space.flat`) into ``root`` (P, K).
 
@@ -178,7 +176,7 @@ def flat_contract(T, keys, rows, W, root):
     return root
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline="always")
 def contract_root(x, tree, C, flat, order, T, cur, nxt, pad):
     """Tables at the state ``x``, then the root's results by the flat or the tree contraction.
 

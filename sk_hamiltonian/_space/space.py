@@ -13,7 +13,7 @@ from .. import _kernels
 from .._config import use_numba
 from . import tensor
 from .contraction import ContractionPlan
-from .flat import TREE_OVERHEAD, FlatPlan
+from .flat import FlatPlan, choose_flat
 from .fourier import fourier_column, wrap_to_period
 from .tables import FactorTables
 
@@ -163,24 +163,25 @@ class ModelSpace:
             self._contraction = (plan,)
         return self._contraction[0]
 
-    def _flat(self, order):
-        """The flat plan of derivative ``order``, or None where the tree costs less (cached).
+    def _flat(self, order, kernels="numpy", n_samples=1):
+        """The flat plan of derivative ``order``, or None where the tree costs less.
 
         A small space (a sparse model's kept terms) pays mostly for the
         tree's fixed bookkeeping; its flat products cost less (see
-        :mod:`.flat`).
+        :mod:`.flat`). The plans are built once.
         """
+        plan = self._plan()
+        tree = (plan.cost * (order + 1) if plan is not None
+                else 4 * self.n_terms * self.layout.n_slots)
         if order not in self._flat_plans:
-            flat = None
-            if self.n_terms:
-                candidate = FlatPlan(self.columns, self.width, order)
-                plan = self._plan()
-                tree = (plan.cost * (order + 1) if plan is not None
-                        else 4 * self.n_terms * self.layout.n_slots)
-                if candidate.cost <= tree + TREE_OVERHEAD:
-                    flat = candidate
-            self._flat_plans[order] = flat
-        return self._flat_plans[order]
+            # Every function costs at least two multiply-adds: skip building
+            # a plan that cannot win.
+            small = 0 < self.n_terms and choose_flat(2 * self.n_terms, tree, "numpy")
+            self._flat_plans[order] = FlatPlan(self.columns, self.width, order) if small else None
+        flat = self._flat_plans[order]
+        if flat is None:
+            return None
+        return flat if choose_flat(flat.cost, tree, kernels, n_samples) else None
 
     def _flat_bound(self, flat, coef):
         """:meth:`FlatPlan.bind` of ``coef``, cached (:func:`cached_binding`)."""
@@ -239,7 +240,7 @@ class ModelSpace:
         """Values of ``sum_j coef[j] phi_j`` (``coef`` may have a trailing target axis)."""
         if use_numba():
             return self._compiled(X, coef, 0)
-        flat = self._flat(0)
+        flat = self._flat(0, n_samples=len(X))
         if flat is not None:
             return self._flat_contract(flat, X, coef)[:, 0]
         result = self._contract(X, coef, 0)
@@ -253,7 +254,7 @@ class ModelSpace:
         """Gradient of ``sum_j coef[j] phi_j``, ndarray of shape (n_samples, n_states) + coef.shape[1:]."""
         if use_numba():
             return self._compiled(X, coef, 1)
-        flat = self._flat(1)
+        flat = self._flat(1, n_samples=len(X))
         if flat is not None:
             return self._flat_contract(flat, X, coef)  # patterns (i,) in order
         result = self._contract(X, coef, 1)
@@ -270,7 +271,7 @@ class ModelSpace:
         """Hessian of ``sum_j coef[j] phi_j``, ndarray of shape (n_samples, n_states, n_states)."""
         if use_numba() and np.ndim(coef) == 1:
             return self._compiled(X, coef, 2)
-        flat = self._flat(2)
+        flat = self._flat(2, n_samples=len(X))
         if flat is not None and np.ndim(coef) == 1:
             upper = self._flat_contract(flat, X, coef)  # (i, j), i <= j, row by row
             i, j = np.triu_indices(self.n_states)
