@@ -49,16 +49,19 @@ def outside_domain(X, domain, periodic, slack=0.0):
 def cached_binding(store, key, coef, make):
     """``make(coef)``, cached in ``store[key]`` while ``coef`` has the same values.
 
-    Keyed by the values (a copy is kept), not by the array: a model's
+    Keyed by the values (their bytes are kept), not by the array: a model's
     coefficients of its kept terms are a new array at every call, and a
     coefficient array changed in place must not find the old binding.
+    Comparing bytes costs less than a random projection of the values (one
+    state's evaluation pays it at every call).
     """
+    values = np.ascontiguousarray(coef, dtype=float)
+    stamp = (values.shape, values.tobytes())
     cached = store.get(key)
-    if (cached is not None and cached[0].shape == np.shape(coef)
-            and (cached[0] == coef).all()):
+    if cached is not None and cached[0] == stamp:
         return cached[1]
-    result = make(coef)
-    store[key] = (np.array(coef, dtype=float), result)
+    result = make(values)
+    store[key] = (stamp, result)
     return result
 
 
@@ -170,18 +173,25 @@ class ModelSpace:
         tree's fixed bookkeeping; its flat products cost less (see
         :mod:`.flat`). The plans are built once.
         """
-        plan = self._plan()
-        tree = (plan.cost * (order + 1) if plan is not None
-                else 4 * self.n_terms * self.layout.n_slots)
         if order not in self._flat_plans:
             # Every function costs at least two multiply-adds: skip building
             # a plan that cannot win.
+            tree = self._tree_cost(order)
             small = 0 < self.n_terms and choose_flat(2 * self.n_terms, tree, "numpy")
-            self._flat_plans[order] = FlatPlan(self.columns, self.width, order) if small else None
-        flat = self._flat_plans[order]
-        if flat is None:
+            self._flat_plans[order] = (
+                (FlatPlan(self.columns, self.width, order), tree) if small else None)
+        entry = self._flat_plans[order]
+        if entry is None:
             return None
+        flat, tree = entry
         return flat if choose_flat(flat.cost, tree, kernels, n_samples) else None
+
+    def _tree_cost(self, order):
+        """Multiply-adds per state of the tree (or slot) contraction up to ``order``."""
+        plan = self._plan()
+        if plan is not None:
+            return plan.cost * (order + 1)
+        return 4 * self.n_terms * self.layout.n_slots
 
     def _flat_bound(self, flat, coef):
         """:meth:`FlatPlan.bind` of ``coef``, cached (:func:`cached_binding`)."""
