@@ -152,7 +152,7 @@ def test_pickled_space_drops_caches_and_evaluates_the_same():
     coef = np.random.default_rng(8).normal(size=space.n_terms)
     expected = space.gradient_dot(X, coef)
     state = space.__getstate__()
-    assert state["_contraction"] is None and state["_binding"] is None
+    assert state["_contraction"] is None and state["_bindings"] == {} and state["_flat_plans"] == {}
     assert np.array_equal(pickle.loads(pickle.dumps(space)).gradient_dot(X, coef), expected)
 
 

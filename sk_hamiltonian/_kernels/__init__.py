@@ -55,29 +55,67 @@ def bound_tree(space, coef):
 
     The bound coefficients are a dense (width, K, n_prefixes) array: ``[c, k,
     p]`` is target ``k``'s coefficient of the function with prefix ``p`` and
-    last column ``c``. The coefficients are cached by identity and a fingerprint of their
-    values, as :meth:`ModelSpace._bound` does, so that changing ``coef`` in
-    place is seen.
+    last column ``c``. The binding is cached while the coefficients keep
+    their values (:func:`~sk_hamiltonian._space.space.cached_binding`), so
+    that changing ``coef`` in place is seen.
     """
-    cache = space.__dict__.get("_kernel_tree")
-    if cache is None:
+    from .._space.space import cached_binding
+
+    tree = space.__dict__.get("_kernel_tree")
+    if tree is None:
         from .tree import tree_arrays
 
-        cache = space.__dict__["_kernel_tree"] = [tree_arrays(space), None]
-    (tree, order), binding = cache
-    fingerprint = (space._probe @ coef).tolist()
-    if binding is not None and binding[0] is coef and binding[1] == fingerprint:
-        return tree, binding[2]
-    coef2 = np.asarray(coef, dtype=float).reshape(space.n_terms, -1)
-    leaf_start, leaf_column = tree[4], tree[5]
-    n_prefixes = leaf_start.size - 1
-    leaf_parent = np.repeat(np.arange(n_prefixes), np.diff(leaf_start))
-    # Dense (width, K, n_prefixes): the leaves are then a few vectorized
-    # passes over the prefixes, with no branch per prefix.
-    bound = np.zeros((tree[10], coef2.shape[1], n_prefixes))
-    bound[leaf_column, :, leaf_parent] = coef2[order]
-    cache[1] = (coef, fingerprint, bound)
-    return tree, bound
+        tree = space.__dict__["_kernel_tree"] = tree_arrays(space)
+    (arrays, order) = tree
+
+    def bind(coef):
+        coef2 = np.asarray(coef, dtype=float).reshape(space.n_terms, -1)
+        leaf_start, leaf_column = arrays[4], arrays[5]
+        n_prefixes = leaf_start.size - 1
+        leaf_parent = np.repeat(np.arange(n_prefixes), np.diff(leaf_start))
+        # Dense (width, K, n_prefixes): the leaves are then a few vectorized
+        # passes over the prefixes, with no branch per prefix.
+        bound = np.zeros((arrays[10], coef2.shape[1], n_prefixes))
+        bound[leaf_column, :, leaf_parent] = coef2[order]
+        return bound
+
+    return arrays, cached_binding(space._bindings, "jit tree", coef, bind)
+
+
+def bound_flat(space, coef):
+    """The flat contractions of ``space`` bound to ``coef``, for :func:`._jit.contract_root`.
+
+    A tuple ``(use, keys0, rows0, W0, keys1, rows1, W1, keys2, rows2, W2)``:
+    for each derivative order, whether the space contracts it flat
+    (:meth:`ModelSpace._flat`), the functions' keys into the compiled work
+    table, the row of the root's results each adds to (0: the value; ``1 +
+    i``: d/dx_i; ``1 + m + i m + j``: d2/dx_i dx_j) and its coefficients
+    (n_functions, K). Orders contracted by the tree get empty arrays. Cached
+    while ``coef`` keeps its values.
+    """
+    from .._space.space import cached_binding
+
+    def bind(coef):
+        coef2 = np.asarray(coef, dtype=float).reshape(space.n_terms, -1)
+        m = space.n_states
+        use = np.zeros(3, dtype=np.bool_)
+        parts = []
+        for order in range(3):
+            flat = space._flat(order, kernels="numba")
+            if flat is None:
+                parts += [np.zeros((0, 1), np.int64), np.zeros(0, np.int64),
+                          np.zeros((0, coef2.shape[1]))]
+                continue
+            use[order] = True
+            q = flat.patterns
+            row = [0] if order == 0 else (
+                [1 + p[0] for p in q] if order == 1 else [1 + m + i * m + j for i, j in q])
+            parts += [np.ascontiguousarray(flat.jit_keys),
+                      np.asarray(row, dtype=np.int64)[flat.pattern],
+                      np.ascontiguousarray(coef2[flat.terms])]
+        return (use, *parts)
+
+    return cached_binding(space._bindings, "jit flat", coef, bind)
 
 
 def contract(space, X, coef, order):
@@ -102,6 +140,7 @@ def contract(space, X, coef, order):
     """
     _jit = _compiled()
     tree, bound = bound_tree(space, coef)
+    flat = bound_flat(space, coef)
     X = np.ascontiguousarray(X, dtype=float)
     n, m = X.shape
     K = bound.shape[1]
@@ -109,7 +148,7 @@ def contract(space, X, coef, order):
     grad = np.empty((n, m, K)) if order >= 1 else np.empty((0, m, K))
     hess = np.empty((n, m, m, K)) if order >= 2 else np.empty((0, m, m, K))
     def part(rows):
-        _jit.evaluate(X[rows], tree, bound, order, value[rows], grad[rows] if order >= 1 else grad,
+        _jit.evaluate(X[rows], tree, bound, flat, order, value[rows], grad[rows] if order >= 1 else grad,
                       hess[rows] if order >= 2 else hess, *_work(tree, K, m))
 
     in_threads(part, n, PARALLEL_ROWS)

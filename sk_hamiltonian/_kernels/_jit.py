@@ -40,17 +40,15 @@ def fill_tables(x, family, degree, slope, offset, order, T):
                 T[i, 0, 1] = w
             for k in range(1, n):
                 T[i, 0, k + 1] = ((2 * k + 1) / (k + 1)) * w * T[i, 0, k] - (k / (k + 1)) * T[i, 0, k - 1]
-            # P'_{k+1} = P'_{k-1} + (2k + 1) P_k, and the same one order up.
+            # P'_{k+1} = P'_{k-1} + (2k + 1) P_k, and the same one order up,
+            # with the chain-rule factor s**r carried along (no pass of
+            # powers afterwards): row r holds s**r times the r-th derivative.
             for r in range(1, order + 1):
                 T[i, r, 0] = 0.0
                 if n >= 1:
-                    T[i, r, 1] = 1.0 if r == 1 else 0.0
+                    T[i, r, 1] = s if r == 1 else 0.0
                 for k in range(1, n):
-                    T[i, r, k + 1] = T[i, r, k - 1] + (2 * k + 1) * T[i, r - 1, k]
-            for r in range(1, order + 1):
-                factor = s ** r
-                for k in range(n + 1):
-                    T[i, r, k] *= factor
+                    T[i, r, k + 1] = T[i, r, k - 1] + ((2 * k + 1) * s) * T[i, r - 1, k]
         else:
             T[i, 0, 0] = 1.0
             for r in range(1, order + 1):
@@ -155,6 +153,49 @@ def _dense_sum(pad, table, out, n_parents):
                 out[p] += pad[c * n_parents + p] * t
 
 
+@njit(cache=True, nogil=True, inline="always")
+def flat_contract(T, keys, rows, W, root):
+    """The flat contraction (:mod:`sk_hamiltonian._space.flat`) into ``root`` (P, K).
+
+    ``T`` is the work table (m, 3, width); ``keys`` index it flattened;
+    function ``f`` adds ``W[f, k] * prod_t T[keys[f, t]]`` to ``root[rows[f], k]``.
+    """
+    table = T.reshape(T.size)
+    K = root.shape[1]
+    for q in range(root.shape[0]):
+        for kk in range(K):
+            root[q, kk] = 0.0
+    n_slots = keys.shape[1]
+    for f in range(keys.shape[0]):
+        v = table[keys[f, 0]]
+        for t in range(1, n_slots):
+            v *= table[keys[f, t]]
+        r = rows[f]
+        for kk in range(K):
+            root[r, kk] += W[f, kk] * v
+    return root
+
+
+@njit(cache=True, nogil=True, inline="always")
+def contract_root(x, tree, C, flat, order, T, cur, nxt, pad):
+    """Tables at the state ``x``, then the root's results by the flat or the tree contraction.
+
+    ``flat`` is the tuple of :func:`sk_hamiltonian._kernels.bound_flat`:
+    ``(use, keys0, rows0, W0, keys1, rows1, W1, keys2, rows2, W2)``,
+    ``use[order]`` saying whether order ``order`` contracts flat (into the
+    work array ``cur``, as the tree does).
+    """
+    fill_tables(x, tree[0], tree[1], tree[2], tree[3], order, T)
+    if flat[0][order]:
+        root = cur[:, :, 0]
+        if order == 0:
+            return flat_contract(T, flat[1], flat[2], flat[3], root)
+        if order == 1:
+            return flat_contract(T, flat[4], flat[5], flat[6], root)
+        return flat_contract(T, flat[7], flat[8], flat[9], root)
+    return contract_tables(T, tree, C, order, cur, nxt, pad)
+
+
 @njit(cache=True, nogil=True)
 def _work(tree, K, m):
     width = tree[10]
@@ -187,16 +228,16 @@ def _store(root, s, order, m, value, grad, hess):
 
 
 @njit(cache=True, nogil=True)
-def evaluate(X, tree, coef, order, value, grad, hess, T, cur, nxt, pad):
+def evaluate(X, tree, coef, flat, order, value, grad, hess, T, cur, nxt, pad):
     """Value (n, K), gradient (n, m, K) and Hessian (n, m, m, K) of ``coef`` at the rows of ``X``.
 
     With the work arrays of :func:`work` (kept between calls: allocating
-    them costs more than contracting one state).
+    them costs more than contracting one state). A flat contraction
+    (``flat[0][order]``) fills only the results of ``order`` itself.
     """
     m = X.shape[1]
     for s in range(X.shape[0]):
-        fill_tables(X[s], tree[0], tree[1], tree[2], tree[3], order, T)
-        root = contract_tables(T, tree, coef, order, cur, nxt, pad)
+        root = contract_root(X[s], tree, coef, flat, order, T, cur, nxt, pad)
         _store(root, s, order, m, value, grad, hess)
 
 

@@ -20,32 +20,36 @@ import math
 import numpy as np
 from numba import njit
 
-from ._jit import _work, contract_tables, fill_tables
+from ._jit import _work, contract_root
+
+# The field, Jacobian and gradient are inlined (inline="always") into the
+# steps: a call of a compiled function that takes the tree and flat tuples
+# (some 20 arrays) counts references of every array, which cost more than
+# the contraction of a sparse model's dozen functions (measured: 16 x 2000
+# RK4 steps of the sparse Henon-Heiles model, 0.106 s CPU before, 0.050 s
+# after; benchmarks/bench_sparse.py).
 
 
-@njit(cache=True, nogil=True)
-def _field(kind, tree, C, gamma, x, T, cur, nxt, pad, f):
+@njit(cache=True, nogil=True, inline="always")
+def _field(kind, tree, C, flat, gamma, x, T, cur, nxt, pad, f):
     m = x.shape[0]
     if kind == 0:
-        fill_tables(x, tree[0], tree[1], tree[2], tree[3], 1, T)
-        root = contract_tables(T, tree, C, 1, cur, nxt, pad)
+        root = contract_root(x, tree, C, flat, 1, T, cur, nxt, pad)
         d = m // 2
         for i in range(d):
             f[i] = -root[1 + d + i, 0] - gamma[i] * root[1 + i, 0]
             f[d + i] = root[1 + i, 0]
     else:
-        fill_tables(x, tree[0], tree[1], tree[2], tree[3], 0, T)
-        root = contract_tables(T, tree, C, 0, cur, nxt, pad)
+        root = contract_root(x, tree, C, flat, 0, T, cur, nxt, pad)
         for c in range(m):
             f[c] = root[0, c]
 
 
-@njit(cache=True, nogil=True)
-def _jacobian(kind, tree, C, gamma, x, T, cur, nxt, pad, J):
+@njit(cache=True, nogil=True, inline="always")
+def _jacobian(kind, tree, C, flat, gamma, x, T, cur, nxt, pad, J):
     m = x.shape[0]
     if kind == 0:
-        fill_tables(x, tree[0], tree[1], tree[2], tree[3], 2, T)
-        root = contract_tables(T, tree, C, 2, cur, nxt, pad)
+        root = contract_root(x, tree, C, flat, 2, T, cur, nxt, pad)
         d = m // 2
         for i in range(d):
             for j in range(m):
@@ -56,17 +60,15 @@ def _jacobian(kind, tree, C, gamma, x, T, cur, nxt, pad, J):
                 J[i, j] = -H_pj - gamma[i] * H_ij
                 J[d + i, j] = H_ij
     else:
-        fill_tables(x, tree[0], tree[1], tree[2], tree[3], 1, T)
-        root = contract_tables(T, tree, C, 1, cur, nxt, pad)
+        root = contract_root(x, tree, C, flat, 1, T, cur, nxt, pad)
         for c in range(m):
             for i in range(m):
                 J[c, i] = root[1 + i, c]
 
 
-@njit(cache=True, nogil=True)
-def _gradient(tree, C, x, T, cur, nxt, pad, g):
-    fill_tables(x, tree[0], tree[1], tree[2], tree[3], 1, T)
-    root = contract_tables(T, tree, C, 1, cur, nxt, pad)
+@njit(cache=True, nogil=True, inline="always")
+def _gradient(tree, C, flat, x, T, cur, nxt, pad, g):
+    root = contract_root(x, tree, C, flat, 1, T, cur, nxt, pad)
     for i in range(x.shape[0]):
         g[i] = root[1 + i, 0]
 
@@ -104,32 +106,32 @@ def _invert(A, out):
 
 
 @njit(cache=True, nogil=True)
-def _rk4(kind, tree, C, gamma, y, h, T, cur, nxt, pad, k1, k2, k3, k4, tmp):
+def _rk4(kind, tree, C, flat, gamma, y, h, T, cur, nxt, pad, k1, k2, k3, k4, tmp):
     m = y.shape[0]
-    _field(kind, tree, C, gamma, y, T, cur, nxt, pad, k1)
+    _field(kind, tree, C, flat, gamma, y, T, cur, nxt, pad, k1)
     for i in range(m):
         tmp[i] = y[i] + (0.5 * h) * k1[i]
-    _field(kind, tree, C, gamma, tmp, T, cur, nxt, pad, k2)
+    _field(kind, tree, C, flat, gamma, tmp, T, cur, nxt, pad, k2)
     for i in range(m):
         tmp[i] = y[i] + (0.5 * h) * k2[i]
-    _field(kind, tree, C, gamma, tmp, T, cur, nxt, pad, k3)
+    _field(kind, tree, C, flat, gamma, tmp, T, cur, nxt, pad, k3)
     for i in range(m):
         tmp[i] = y[i] + h * k3[i]
-    _field(kind, tree, C, gamma, tmp, T, cur, nxt, pad, k4)
+    _field(kind, tree, C, flat, gamma, tmp, T, cur, nxt, pad, k4)
     for i in range(m):
         y[i] = y[i] + (h / 6.0) * (k1[i] + 2.0 * (k2[i] + k3[i]) + k4[i])
 
 
 @njit(cache=True, nogil=True)
-def _avf(kind, tree, C, gamma, y, h, nodes, weights, rtol, max_iter, T, cur, nxt, pad, J, M, f, y1, avg, point):
+def _avf(kind, tree, C, flat, gamma, y, h, nodes, weights, rtol, max_iter, T, cur, nxt, pad, J, M, f, y1, avg, point):
     """One AVF step of ``y`` in place; NaN where Newton does not converge (see AveragedVectorField)."""
     m = y.shape[0]
-    _jacobian(kind, tree, C, gamma, y, T, cur, nxt, pad, J)
+    _jacobian(kind, tree, C, flat, gamma, y, T, cur, nxt, pad, J)
     for i in range(m):
         for j in range(m):
             J[i, j] = (1.0 if i == j else 0.0) - (0.5 * h) * J[i, j]
     _invert(J, M)
-    _field(kind, tree, C, gamma, y, T, cur, nxt, pad, f)
+    _field(kind, tree, C, flat, gamma, y, T, cur, nxt, pad, f)
     scale = 1.0
     for i in range(m):
         s = 0.0
@@ -146,7 +148,7 @@ def _avf(kind, tree, C, gamma, y, h, nodes, weights, rtol, max_iter, T, cur, nxt
         for q in range(nodes.shape[0]):
             for i in range(m):
                 point[i] = y[i] + nodes[q] * (y1[i] - y[i])
-            _field(kind, tree, C, gamma, point, T, cur, nxt, pad, f)
+            _field(kind, tree, C, flat, gamma, point, T, cur, nxt, pad, f)
             for i in range(m):
                 avg[i] += weights[q] * f[i]
         for i in range(m):
@@ -172,18 +174,18 @@ def _avf(kind, tree, C, gamma, y, h, nodes, weights, rtol, max_iter, T, cur, nxt
 
 
 @njit(cache=True, nogil=True)
-def _leapfrog(tree, C, tree2, C2, y, h, lf_weights, T, cur, nxt, pad, T2, cur2, nxt2, pad2, g):
+def _leapfrog(tree, C, flat, tree2, C2, flat2, y, h, lf_weights, T, cur, nxt, pad, T2, cur2, nxt2, pad2, g):
     d = y.shape[0] // 2
     p = y[:d]
     q = y[d:]
     for w in lf_weights:
-        _gradient(tree, C, q, T, cur, nxt, pad, g)
+        _gradient(tree, C, flat, q, T, cur, nxt, pad, g)
         for i in range(d):
             p[i] -= (0.5 * w * h) * g[i]
-        _gradient(tree2, C2, p, T2, cur2, nxt2, pad2, g)
+        _gradient(tree2, C2, flat2, p, T2, cur2, nxt2, pad2, g)
         for i in range(d):
             q[i] += (w * h) * g[i]
-        _gradient(tree, C, q, T, cur, nxt, pad, g)
+        _gradient(tree, C, flat, q, T, cur, nxt, pad, g)
         for i in range(d):
             p[i] -= (0.5 * w * h) * g[i]
 
@@ -196,7 +198,7 @@ def _wrap(y, periodic, low, high):
 
 
 @njit(cache=True, nogil=True)
-def _run(method, kind, tree, C, tree2, C2, gamma, lf_weights, nodes, weights, rtol, max_iter,
+def _run(method, kind, tree, C, flat, tree2, C2, flat2, gamma, lf_weights, nodes, weights, rtol, max_iter,
          periodic, low, high, y0, n_sub, h, out, failed_at, first, stop):
     """Integrate the initial states ``first .. stop - 1`` (see :func:`integrate`)."""
     m = y0.shape[1]
@@ -223,12 +225,12 @@ def _run(method, kind, tree, C, tree2, C2, gamma, lf_weights, nodes, weights, rt
             y[:] = last
             for _ in range(n_sub[k]):
                 if method == 0:
-                    _rk4(kind, tree, C, gamma, y, h[k], T, cur, nxt, pad, k1, k2, k3, k4, tmp)
+                    _rk4(kind, tree, C, flat, gamma, y, h[k], T, cur, nxt, pad, k1, k2, k3, k4, tmp)
                 elif method == 1:
-                    _avf(kind, tree, C, gamma, y, h[k], nodes, weights, rtol, max_iter,
+                    _avf(kind, tree, C, flat, gamma, y, h[k], nodes, weights, rtol, max_iter,
                          T, cur, nxt, pad, J, M, k1, k2, k3, k4)
                 else:
-                    _leapfrog(tree, C, tree2, C2, y, h[k], lf_weights, T, cur, nxt, pad,
+                    _leapfrog(tree, C, flat, tree2, C2, flat2, y, h[k], lf_weights, T, cur, nxt, pad,
                               T2, cur2, nxt2, pad2, k1)
             finite = True
             for i in range(m):
@@ -245,11 +247,11 @@ def _run(method, kind, tree, C, tree2, C2, gamma, lf_weights, nodes, weights, rt
 
 
 @njit(cache=True, nogil=True)
-def integrate(method, kind, tree, C, tree2, C2, gamma, lf_weights, nodes, weights, rtol,
+def integrate(method, kind, tree, C, flat, tree2, C2, flat2, gamma, lf_weights, nodes, weights, rtol,
               max_iter, periodic, low, high, y0, n_sub, h, out, failed_at):
     """Integrate every initial state of ``y0`` into ``out`` (n_times, n, m).
 
     Releases the GIL: callers run chunks of initial states in threads.
     """
-    _run(method, kind, tree, C, tree2, C2, gamma, lf_weights, nodes, weights, rtol, max_iter,
+    _run(method, kind, tree, C, flat, tree2, C2, flat2, gamma, lf_weights, nodes, weights, rtol, max_iter,
          periodic, low, high, y0, n_sub, h, out, failed_at, 0, y0.shape[0])

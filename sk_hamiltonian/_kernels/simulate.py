@@ -11,7 +11,7 @@ import math
 
 import numpy as np
 
-from . import PARALLEL_ROWS, bound_tree, in_threads
+from . import PARALLEL_ROWS, bound_flat, bound_tree, in_threads
 
 METHOD_CODES = {"rk4": 0, "avf": 1, "leapfrog": 2, "yoshida4": 2}
 
@@ -69,13 +69,16 @@ def integrate_compiled(integrator, y0, t, max_step):
     )
     h = intervals / np.maximum(n_sub, 1) if n_times > 1 else np.zeros(0)
     tree, C = bound_tree(space, model.coef)
+    flat = bound_flat(space, model.coef)
     if code == 2:
         (kinetic, c_p), (potential, c_q) = model.split
         tree, C = bound_tree(potential, c_q)
+        flat = bound_flat(potential, c_q)
         tree2, C2 = bound_tree(kinetic, c_p)
+        flat2 = bound_flat(kinetic, c_p)
         lf_weights = np.asarray(integrator.weights, dtype=float)
     else:
-        tree2, C2, lf_weights = tree, C, np.zeros(0)
+        tree2, C2, flat2, lf_weights = tree, C, flat, np.zeros(0)
     if code == 1:
         nodes, weights = integrator.nodes, integrator.weights
         rtol, max_iter = float(integrator.rtol), int(integrator.max_iter)
@@ -94,7 +97,7 @@ def integrate_compiled(integrator, y0, t, max_step):
         out = np.empty((n_times, rows.stop - rows.start, m))
         failed_at = np.empty(rows.stop - rows.start, dtype=np.int64)
         _simulate_jit.integrate(
-            code, kind, tree, C, tree2, C2, gamma, lf_weights, nodes, weights, rtol, max_iter,
+            code, kind, tree, C, flat, tree2, C2, flat2, gamma, lf_weights, nodes, weights, rtol, max_iter,
             periodic, low, high, np.ascontiguousarray(y0[rows]), n_sub, h, out, failed_at,
         )
         parts[rows.start] = (out, failed_at)

@@ -2,7 +2,9 @@
 
 One small module per idea: :mod:`.legendre` and :mod:`.fourier` are the 1-D
 families, :mod:`.index_set` says which tensor products enter, :mod:`.tensor`
-evaluates them (the hot path), :mod:`.gram` gives the closed-form Gram matrix
+evaluates them (the hot path), :mod:`.contraction` and :mod:`.flat` contract
+them with a model's coefficients (large spaces along a prefix tree, small
+ones one product per function), :mod:`.gram` gives the closed-form Gram matrix
 and the stability constant of the paper's Corollary 3.4, and
 :class:`.ModelSpace` ties them to a box.
 """

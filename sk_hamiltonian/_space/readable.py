@@ -17,6 +17,7 @@ sparse in it, so it is where a threshold decides which terms stay.
 import numpy as np
 from numpy.polynomial import Legendre, Polynomial
 from scipy import sparse
+from scipy.linalg import solve_triangular
 
 
 def legendre_to_monomials(degree, low, high):
@@ -57,6 +58,11 @@ def _angle_table(top, low, omega):
     table[top, top] = 1.0
     for k in range(1, top + 1):
         c, s = np.cos(k * omega * low), np.sin(k * omega * low)
+        # A period starting at a multiple of a quarter turn (e.g. -pi) makes
+        # one of them zero; the rounded angle leaves ~1e-16, which would tie
+        # every cosine to a sine. Below the angle's own rounding it is zero.
+        tiny = 4 * np.finfo(float).eps * max(1.0, abs(k * omega * low))
+        c, s = (0.0 if abs(c) <= tiny else c), (0.0 if abs(s) <= tiny else s)
         plus, minus = top + k, top - k
         table[plus, plus], table[plus, minus] = c, s
         table[minus, plus], table[minus, minus] = -s, c
@@ -104,7 +110,12 @@ class ReadableBasis:
             else:
                 M = legendre_to_monomials(top, low, high)
                 forward.append(M)
-                backward.append(np.linalg.inv(M))
+                # The inverse of a lower-triangular matrix is lower triangular;
+                # a general inverse leaves round-off (~1e-17) above the
+                # diagonal, which gave every kept monomial spurious
+                # higher-degree companions to evaluate (37 functions instead
+                # of 11 for the sparse Henon-Heiles model).
+                backward.append(solve_triangular(M, np.eye(top + 1), lower=True))
                 offsets.append(0)
         shifted = powers + np.asarray(offsets, dtype=np.intp)
         self.to_fitting = _tensor(shifted, backward).T.tocsc()

@@ -13,6 +13,7 @@ from .. import _kernels
 from .._config import use_numba
 from . import tensor
 from .contraction import ContractionPlan
+from .flat import FlatPlan, choose_flat
 from .fourier import fourier_column, wrap_to_period
 from .tables import FactorTables
 
@@ -43,6 +44,25 @@ def outside_domain(X, domain, periodic, slack=0.0):
     below = np.where(periodic, -np.inf, low - margin)
     above = np.where(periodic, np.inf, high + margin)
     return ((X < below) | (X > above)).any(axis=1)
+
+
+def cached_binding(store, key, coef, make):
+    """``make(coef)``, cached in ``store[key]`` while ``coef`` has the same values.
+
+    Keyed by the values (their bytes are kept), not by the array: a model's
+    coefficients of its kept terms are a new array at every call, and a
+    coefficient array changed in place must not find the old binding.
+    Comparing bytes costs less than a random projection of the values (one
+    state's evaluation pays it at every call).
+    """
+    values = np.ascontiguousarray(coef, dtype=float)
+    stamp = (values.shape, values.tobytes())
+    cached = store.get(key)
+    if cached is not None and cached[0] == stamp:
+        return cached[1]
+    result = make(values)
+    store[key] = (stamp, result)
+    return result
 
 
 class ModelSpace:
@@ -77,16 +97,22 @@ class ModelSpace:
         self.factor_tables = FactorTables(
             self.domain, self.periodic, self.legendre_degree, self.fourier_degree, self.width
         )
-        # Built on first use: (plan,) and (coef, fingerprint, coefficient matrix).
+        # Built on first use: (plan,), the flat plans by order, and the
+        # coefficient matrices of the last coefficients (cached_binding).
         self._contraction = None
-        self._binding = None
-        self._probe = np.random.default_rng(0).standard_normal(self.n_terms)
+        self._flat_plans = {}
+        self._bindings = {}
 
     def __getstate__(self):
         # Caches are rebuilt on first use; keep pickles (joblib, dask) small.
-        state = {**self.__dict__, "_contraction": None, "_binding": None}
+        state = {**self.__dict__, "_contraction": None, "_flat_plans": {}, "_bindings": {}}
         state.pop("_kernel_tree", None)
         return state
+
+    def __setstate__(self, state):
+        # Pickles of other versions may lack (or carry other) caches.
+        self.__dict__.update(state)
+        self._contraction, self._flat_plans, self._bindings = None, {}, {}
 
     @property
     def n_states(self):
@@ -140,26 +166,54 @@ class ModelSpace:
             self._contraction = (plan,)
         return self._contraction[0]
 
-    def _bound(self, plan, coef):
-        """The coefficient matrix of ``coef``, cached while ``coef`` is unchanged.
+    def _flat(self, order, kernels="numpy", n_samples=1):
+        """The flat plan of derivative ``order``, or None where the tree costs less.
 
-        The cache is keyed by the array and a fingerprint of its values (a
-        fixed random projection), so that changing ``coef`` in place is seen.
+        A small space (a sparse model's kept terms) pays mostly for the
+        tree's fixed bookkeeping; its flat products cost less (see
+        :mod:`.flat`). The plans are built once.
         """
-        fingerprint = (self._probe @ coef).tolist()
-        cached = self._binding
-        if cached is not None and cached[0] is coef and cached[1] == fingerprint:
-            return cached[2]
-        C = plan.bind(coef)
-        self._binding = (coef, fingerprint, C)
-        return C
+        if order not in self._flat_plans:
+            # Every function costs at least two multiply-adds: skip building
+            # a plan that cannot win.
+            tree = self._tree_cost(order)
+            small = 0 < self.n_terms and choose_flat(2 * self.n_terms, tree, "numpy")
+            self._flat_plans[order] = (
+                (FlatPlan(self.columns, self.width, order), tree) if small else None)
+        entry = self._flat_plans[order]
+        if entry is None:
+            return None
+        flat, tree = entry
+        return flat if choose_flat(flat.cost, tree, kernels, n_samples) else None
+
+    def _tree_cost(self, order):
+        """Multiply-adds per state of the tree (or slot) contraction up to ``order``."""
+        plan = self._plan()
+        if plan is not None:
+            return plan.cost * (order + 1)
+        return 4 * self.n_terms * self.layout.n_slots
+
+    def _flat_bound(self, flat, coef):
+        """:meth:`FlatPlan.bind` of ``coef``, cached (:func:`cached_binding`)."""
+        return cached_binding(self._bindings, ("flat", flat.order), coef, flat.bind)
+
+    def _flat_contract(self, flat, X, coef):
+        """Patterns of ``flat`` at ``X``, samples first: (n_samples, n_patterns) + coef.shape[1:]."""
+        tables = self.factor_tables(X, flat.order, evaluation=True)
+        out = flat.contract(tables, self._flat_bound(flat, coef))  # (patterns, K, samples)
+        out = out.transpose(2, 0, 1)
+        return out[:, :, 0] if np.ndim(coef) == 1 else out
+
+    def _bound(self, plan, coef):
+        """The coefficient matrix of ``coef`` (:meth:`ContractionPlan.bind`), cached."""
+        return cached_binding(self._bindings, "tree", coef, plan.bind)
 
     def _contract(self, X, coef, order):
         """Contraction results (n_patterns, K, n_samples) and patterns, or None."""
         plan = self._plan()
         if plan is None:
             return None
-        tables = self.factor_tables(X, order)
+        tables = self.factor_tables(X, order, evaluation=True)
         return plan.contract(tables, self._bound(plan, coef), order)
 
     def values(self, X):
@@ -196,6 +250,9 @@ class ModelSpace:
         """Values of ``sum_j coef[j] phi_j`` (``coef`` may have a trailing target axis)."""
         if use_numba():
             return self._compiled(X, coef, 0)
+        flat = self._flat(0, n_samples=len(X))
+        if flat is not None:
+            return self._flat_contract(flat, X, coef)[:, 0]
         result = self._contract(X, coef, 0)
         if result is None:
             return self.values(X) @ coef
@@ -207,10 +264,13 @@ class ModelSpace:
         """Gradient of ``sum_j coef[j] phi_j``, ndarray of shape (n_samples, n_states) + coef.shape[1:]."""
         if use_numba():
             return self._compiled(X, coef, 1)
+        flat = self._flat(1, n_samples=len(X))
+        if flat is not None:
+            return self._flat_contract(flat, X, coef)  # patterns (i,) in order
         result = self._contract(X, coef, 1)
         if result is None:
             if np.ndim(coef) == 1:
-                return tensor.gradient_dot(self.factor_tables(X, 1), self.layout, coef).T
+                return tensor.gradient_dot(self.factor_tables(X, 1, evaluation=True), self.layout, coef).T
             return np.einsum("jis,jk->sik", self.gradients_t(X), coef)
         derivatives, _ = result
         rows = self._plan().rows(1, [(i,) for i in range(self.n_states)])
@@ -221,9 +281,17 @@ class ModelSpace:
         """Hessian of ``sum_j coef[j] phi_j``, ndarray of shape (n_samples, n_states, n_states)."""
         if use_numba() and np.ndim(coef) == 1:
             return self._compiled(X, coef, 2)
+        flat = self._flat(2, n_samples=len(X))
+        if flat is not None and np.ndim(coef) == 1:
+            upper = self._flat_contract(flat, X, coef)  # (i, j), i <= j, row by row
+            i, j = np.triu_indices(self.n_states)
+            H = np.empty((upper.shape[0], self.n_states, self.n_states))
+            H[:, i, j] = upper
+            H[:, j, i] = upper
+            return H
         result = self._contract(X, coef, 2)
         if result is None:
-            H = tensor.hessian_dot(self.factor_tables(X, 2), self.layout, coef)
+            H = tensor.hessian_dot(self.factor_tables(X, 2, evaluation=True), self.layout, coef)
             return np.moveaxis(H, -1, 0)
         derivatives, patterns = result
         m = self.n_states
