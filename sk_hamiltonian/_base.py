@@ -151,9 +151,7 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
             return fit_distributed(self, X, y, sample_weight)
         self._partial = None
         data = self._training_data(X, y, sample_weight)
-        self._set_up_space(data)
-        n_rows = data.n_rows(self.fit_on) * self._rows_per_sample(data.states.shape[1])
-        self.solver_ = choose_solver(self.solver, n_rows, self.powers_.shape[0])
+        n_rows = self._set_up_fit(data)
         # Small problems on one BLAS thread: thread start-up and, on a busy
         # machine, oversubscription cost more than they save.
         with limit_blas(gram_flops(n_rows, self._n_unknowns())):
@@ -389,13 +387,24 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
         """Number of basis functions for data with ``n_states`` variables."""
         return self._index_set(n_states).shape[0]
 
-    def _fit_coef(self, data):
-        """Solve the least-squares problem of ``data`` with ``solver_``; set the coefficients."""
-        problem = LeastSquaresProblem(
+    def _set_up_fit(self, data):
+        """Model space and solver for ``data``; returns the number of equations."""
+        self._set_up_space(data)
+        n_rows = data.n_rows(self.fit_on) * self._rows_per_sample(data.states.shape[1])
+        self.solver_ = choose_solver(self.solver, n_rows, self.powers_.shape[0])
+        return n_rows
+
+    def _least_squares_problem(self, data):
+        """The design of a fit on ``data``, in the forms the solvers take."""
+        return LeastSquaresProblem(
             lambda grouped=False: self._design_blocks(data, grouped=grouped),
             self._normal_accumulator, lambda: self._design_operator(data),
             self._n_unknowns(), self._n_nonnegative(),
         )
+
+    def _fit_coef(self, data):
+        """Solve the least-squares problem of ``data`` with ``solver_``; set the coefficients."""
+        problem = self._least_squares_problem(data)
         name = type(self).__name__
         single_solve = self.threshold == 0 and not self._n_nonnegative()
         try:
@@ -445,14 +454,8 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
         self._check_integer_params()
         self._partial = None
         data = self._training_data(X, None, None)
-        self._set_up_space(data)
-        n_rows = data.n_rows(self.fit_on) * self._rows_per_sample(data.states.shape[1])
-        self.solver_ = choose_solver(self.solver, n_rows, self.powers_.shape[0])
-        problem = LeastSquaresProblem(
-            lambda grouped=False: self._design_blocks(data, grouped=grouped),
-            self._normal_accumulator, lambda: self._design_operator(data),
-            self._n_unknowns(), self._n_nonnegative(),
-        )
+        n_rows = self._set_up_fit(data)
+        problem = self._least_squares_problem(data)
         models = []
         with limit_blas(gram_flops(n_rows, self._n_unknowns())):
             solve, norms = column_solver(
