@@ -36,6 +36,8 @@ EVALUATION_DIRECT_ENTRIES = 5000
 
 
 _DERIVATIVE_MATRICES = {}
+# Degrees as a column, for eval_legendre (one allocation fewer per evaluation).
+_ORDERS = np.arange(64)[:, None]
 
 
 def _derivative_matrix_t(degree):
@@ -45,13 +47,18 @@ def _derivative_matrix_t(degree):
     return _DERIVATIVE_MATRICES[degree]
 
 
-def _legendre(xi, degree, out, evaluation=False):
-    """Fill ``out[r]`` (n_vars, degree + 1, S) with the r-th derivatives of P_0..P_degree at xi."""
+def _legendre(xi, degree, out, evaluation=False, chain=None):
+    """Fill ``out[r]`` (n_vars, degree + 1, S) with the r-th derivatives of P_0..P_degree at xi.
+
+    ``chain`` (n_vars, 1, 1), the factor ``d xi / d x`` per variable, makes
+    them derivatives with respect to ``x``; default 1 (with respect to xi).
+    """
     value = out[0]
     direct = xi.size * (degree + 1) <= EVALUATION_DIRECT_ENTRIES if evaluation else (
         xi.size <= DIRECT_POINTS)
     if direct:
-        value[...] = eval_legendre(np.arange(degree + 1)[:, None], xi[:, None, :])
+        orders = _ORDERS[: degree + 1] if degree < _ORDERS.size else np.arange(degree + 1)[:, None]
+        eval_legendre(orders, xi[:, None, :], out=value)
     else:
         value[:, 0] = 1.0
         if degree >= 1:
@@ -59,21 +66,31 @@ def _legendre(xi, degree, out, evaluation=False):
         for k in range(1, degree):
             np.multiply(((2 * k + 1) / (k + 1)) * xi, value[:, k], out=value[:, k + 1])
             value[:, k + 1] -= (k / (k + 1)) * value[:, k - 1]
-    # P'_n = sum_k D[k, n] P_k: one product over the degree axis per order.
+    if out.shape[0] == 1:
+        return
+    # P'_n = sum_k D[k, n] P_k: one product over the degree axis per order,
+    # with the chain-rule factor folded into the matrix (one product, not two).
     DT = _derivative_matrix_t(degree)
+    if chain is not None:
+        DT = chain * DT
     for r in range(1, out.shape[0]):
         np.matmul(DT, out[r - 1], out=out[r])
 
 
-def _fourier(theta, degree, out, evaluation=False):
-    """Fill ``out[r]`` (n_vars, 2K + 1, S) with d^r/dtheta^r of 1, cos theta, sin theta, ..."""
+def _fourier(theta, degree, out, evaluation=False, chain=None):
+    """Fill ``out[r]`` (n_vars, 2K + 1, S) with d^r/dtheta^r of 1, cos theta, sin theta, ...
+
+    ``chain`` (n_vars, 1, 1), the factor ``d theta / d x`` per variable, makes
+    them derivatives with respect to ``x``; default 1.
+    """
     k = np.arange(1, degree + 1, dtype=float)
     angles = k[None, :, None] * theta[:, None, :]
     cos, sin = np.cos(angles), np.sin(angles)
+    rate = k[None, :, None] if chain is None else chain * k[None, :, None]
     for r in range(out.shape[0]):
         out[r, :, 0] = 1.0 if r == 0 else 0.0
         # d^r/dtheta^r of cos(k.) and sin(k.) cycle through +-k^r (cos, sin).
-        factor = (k**r)[None, :, None]
+        factor = rate**r
         c, s = [(cos, sin), (-sin, cos), (-cos, -sin)][r]
         np.multiply(factor, c, out=out[r, :, 1::2])
         np.multiply(factor, s, out=out[r, :, 2::2])
@@ -131,16 +148,13 @@ class FactorTables:
         tables = np.zeros((n_derivatives + 1, m + 1, self.width, n_samples))
         tables[0, m, 0] = 1.0
         for family, degree, columns, rows, slope, offset in self.families:
+            chain = slope[:, :, None]
             if rows is None:
                 window = X.T * slope + offset
-                family(window, degree, tables[:, :m, :columns], evaluation)
-                target = tables[:, :m, :columns]
+                family(window, degree, tables[:, :m, :columns], evaluation, chain)
             else:
                 window = X[:, rows].T * slope + offset
                 target = np.empty((n_derivatives + 1, rows.size, columns, n_samples))
-                family(window, degree, target, evaluation)
-            for r in range(1, n_derivatives + 1):
-                target[r] *= (slope**r)[:, :, None]
-            if rows is not None:
+                family(window, degree, target, evaluation, chain)
                 tables[:, rows, :columns] = target
         return tables
