@@ -1,6 +1,7 @@
 """What the two regressors share: input handling, model space, simulation and scoring."""
 
 import copy
+import operator
 import warnings
 from numbers import Integral, Real
 
@@ -95,6 +96,7 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
         "momentum_degree": [Interval(Integral, 0, None, closed="left"), None],
         "separable": ["boolean"],
         "max_interaction": [Interval(Integral, 1, None, closed="left"), None],
+        "couplings": ["array-like", None],
         "fit_on": [StrOptions({"derivatives", "steps", "simpson"})],
         "threshold": [Interval(Real, 0, None, closed="left")],
         "solver": [StrOptions({"auto", "lstsq", "normal", "iterative"})],
@@ -106,8 +108,8 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
 
     def __init__(
         self, degree=3, *, domain=None, periodic=None, momentum_degree=None,
-        separable=False, max_interaction=None, fit_on="derivatives", threshold=0.0,
-        solver="auto", verbose=0,
+        separable=False, max_interaction=None, couplings=None, fit_on="derivatives",
+        threshold=0.0, solver="auto", verbose=0,
     ):
         self.degree = degree
         self.domain = domain
@@ -115,6 +117,7 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
         self.momentum_degree = momentum_degree
         self.separable = separable
         self.max_interaction = max_interaction
+        self.couplings = couplings
         self.fit_on = fit_on
         self.threshold = threshold
         self.solver = solver
@@ -380,8 +383,35 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
         return index_set(
             n_states, self.degree, periodic=self._fit_periodic(n_states),
             momentum_degree=self.momentum_degree, separable=self.separable,
-            max_interaction=self.max_interaction, include_constant=self._include_constant,
+            max_interaction=self.max_interaction, couplings=self._couplings(n_states),
+            include_constant=self._include_constant,
         )
+
+    def _couplings(self, n_states):
+        """``couplings`` as tuples of variable indices, checked against ``n_states``."""
+        if self.couplings is None:
+            return None
+        groups = []
+        for group in self.couplings:
+            try:
+                members = [operator.index(i) for i in group]
+            except TypeError:
+                members = None
+            if (
+                members is None or isinstance(group, str)
+                or any(isinstance(i, (bool, np.bool_)) for i in group)
+                or len(set(members)) < 2 or len(set(members)) != len(members)
+                or not all(0 <= i < n_states for i in members)
+            ):
+                raise ValueError(
+                    f"couplings must be a list of groups of state-variable indices, each "
+                    f"naming at least two distinct variables in [0, {n_states}) (momenta "
+                    f"first: p_1..p_d are 0..d-1, q_1..q_d are d..2d-1); got the group "
+                    f"{group!r}. For nearest neighbours on a chain of d particles, pass "
+                    f"[(d + i, d + i + 1) for i in range(d - 1)]."
+                )
+            groups.append(tuple(members))
+        return groups
 
     def _n_terms(self, n_states):
         """Number of basis functions for data with ``n_states`` variables."""

@@ -62,6 +62,15 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
     max_interaction : int, default=None
         Most state variables one basis function depends on (2: pairwise
         couplings, as in lattices). None: no limit.
+    couplings : list of sequences of int, default=None
+        Which state variables may be coupled: a basis function of two or more
+        variables enters only if they all lie in one group (indices into the
+        state, momenta first). Nearest neighbours on a chain of ``d``
+        particles coupled through their positions are
+        ``[(d + i, d + i + 1) for i in range(d - 1)]``; add ``(2 * d - 1, d)``
+        for a ring. Functions of one variable always enter. It combines with
+        ``separable`` and ``max_interaction``. None: any variables may be
+        coupled.
     fit_on : {"derivatives", "steps", "simpson"}, default="derivatives"
         What the model is fitted to. ``"derivatives"``: the paper's fit, the
         gradient against the estimated time derivatives. ``"steps"``: the
@@ -208,13 +217,13 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
 
     def __init__(
         self, degree=3, *, domain=None, periodic=None, momentum_degree=None,
-        separable=False, max_interaction=None, fit_on="derivatives", threshold=0.0,
-        damping=False, solver="auto", verbose=0,
+        separable=False, max_interaction=None, couplings=None, fit_on="derivatives",
+        threshold=0.0, damping=False, solver="auto", verbose=0,
     ):
         super().__init__(
             degree, domain=domain, periodic=periodic, momentum_degree=momentum_degree,
-            separable=separable, max_interaction=max_interaction, fit_on=fit_on,
-            threshold=threshold, solver=solver, verbose=verbose,
+            separable=separable, max_interaction=max_interaction, couplings=couplings,
+            fit_on=fit_on, threshold=threshold, solver=solver, verbose=verbose,
         )
         self.damping = damping
 
@@ -245,7 +254,7 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
                 f"equations for {n_unknowns} unknowns at degree={self.degree}: the "
                 f"least-squares problem is underdetermined. Provide more samples (more "
                 f"or longer trajectories), lower `degree`, or restrict the space "
-                f"(momentum_degree, separable, max_interaction)."
+                f"(momentum_degree, separable, max_interaction, couplings)."
             )
 
     def _design_blocks(self, data, grouped=False):

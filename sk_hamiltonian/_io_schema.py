@@ -2,7 +2,9 @@
 
 Values go into the JSON manifest as plain scalars, lists of strings, or a
 reference ``{"array": member, "shape": ..., "dtype": ...}`` to an ``.npy``
-member; a non-finite float is ``{"float": "nan"}`` (JSON has no NaN). Nothing
+member; a non-finite float is ``{"float": "nan"}`` (JSON has no NaN), and a
+list of sequences of different lengths is ``{"items": [...]}``, each item
+encoded in turn (at most two levels deep). Nothing
 else can be written or read, so loading never constructs anything beyond
 numbers, strings, numpy arrays and the allow-listed estimator classes.
 """
@@ -21,6 +23,8 @@ ATTRIBUTE_NAME = re.compile(r"\A[a-z][a-z0-9_]{0,63}\Z")
 #: Private fitted state saved explicitly (the rest is rebuilt from the public).
 PRIVATE_STATE = ("_state_magnitude",)
 SPECIAL_FLOATS = {"nan": math.nan, "inf": math.inf, "-inf": -math.inf}
+#: Deepest nesting of lists that are no array (groups of different sizes).
+MAX_NESTING = 2
 #: How an array-valued parameter was given, to give it back the same way.
 CONTAINERS = {"ndarray": lambda a: a, "list": lambda a: a.tolist(),
               "tuple": lambda a: tuple(a.tolist())}
@@ -49,6 +53,9 @@ class Encoder:
             kind = type(value).__name__ if isinstance(value, (list, tuple)) else "ndarray"
             if kind != "ndarray" and all(isinstance(v, str) for v in value) and value:
                 return {"strings": list(value), "as": kind}
+            if kind != "ndarray" and _is_ragged(value):
+                # Groups of different sizes (``couplings``): item by item.
+                return {"items": [self.encode(v, what) for v in value], "as": kind}
             array = np.asarray(value)
             if array.dtype.kind == "O" and all(isinstance(v, str) for v in array.ravel()):
                 return {"strings": [str(v) for v in array.ravel()], "as": "ndarray"}
@@ -67,7 +74,16 @@ class Encoder:
         )
 
 
-def decode(value, container, what):
+def _is_ragged(value):
+    """Whether a list or tuple of sequences has no rectangular array form."""
+    try:
+        np.asarray(value)
+    except ValueError:
+        return True
+    return False
+
+
+def decode(value, container, what, depth=0):
     """The value an :meth:`Encoder.encode` result stands for, read from ``container``."""
     if value is None or isinstance(value, (bool, int, float, str)):
         return value
@@ -78,6 +94,12 @@ def decode(value, container, what):
         ):
             return SPECIAL_FLOATS[value["float"]]
         kind = value.get("as") if isinstance(value.get("as"), str) else None
+        if (
+            keys == {"items", "as"} and kind in ("list", "tuple")
+            and isinstance(value["items"], list) and depth < MAX_NESTING
+        ):
+            items = [decode(v, container, what, depth + 1) for v in value["items"]]
+            return items if kind == "list" else tuple(items)
         if keys == {"strings", "as"} and _is_string_list(value["strings"]):
             if kind == "ndarray":
                 return np.array(value["strings"], dtype=object)

@@ -11,7 +11,7 @@ import numpy as np
 # Model-space parameters that must not change between partial_fit calls.
 SPACE_PARAMETERS = (
     "degree", "domain", "periodic", "momentum_degree", "separable", "max_interaction",
-    "fit_on", "damping",
+    "couplings", "fit_on", "damping",
 )
 # States kept (uniformly at random over everything seen) for the time scale.
 RESERVOIR_SIZE = 256

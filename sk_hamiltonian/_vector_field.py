@@ -46,6 +46,9 @@ class VectorFieldRegressor(BaseTrajectoryRegressor):
         No basis function mixes momenta and positions.
     max_interaction : int, default=None
         Most state variables one basis function depends on; None: no limit.
+    couplings : list of sequences of int, default=None
+        Groups of state variables that may share a basis function, as in
+        :class:`HamiltonianRegressor`; None: any variables may.
     fit_on : {"derivatives", "steps", "simpson"}, default="derivatives"
         ``"steps"``: fit ``x1 - x0 = dt int_0^1 f(x0 + s (x1 - x0)) ds`` on the
         observed steps instead of estimated derivatives (derivative layout

@@ -71,6 +71,44 @@ def test_pairwise_separable_space_follows_the_fput_chain(chain_model):
         assert error.max() < 1e-3, method
 
 
+def test_nearest_neighbour_couplings_hold_the_chain_with_a_fraction_of_the_terms():
+    # The chain's H couples only neighbouring positions: restricted to those
+    # bonds, the space still holds it exactly. Exact gradients isolate the space.
+    chain = fput_chain(8)
+    rng = np.random.default_rng(0)
+    X = rng.uniform(chain.domain[:, 0], chain.domain[:, 1], size=(600, 16)) / 2
+    y = chain.vector_field(X)
+    bonds = [(8 + i, 9 + i) for i in range(7)]
+    box = chain.domain / 2
+    model = HamiltonianRegressor(
+        degree=4, domain=box, separable=True, couplings=bonds).fit(X, y)
+    pairs = HamiltonianRegressor(degree=4, separable=True, max_interaction=2)
+    # 16 x 4 functions of one variable and 7 bonds x 6 degree pairs, of 400.
+    assert model.n_terms_ == 16 * 4 + 7 * 6 < count_terms(pairs, n_states=16) == 400
+    test = rng.uniform(chain.domain[:, 0], chain.domain[:, 1], size=(200, 16)) / 2
+    assert relative_h_error(model, chain, test) < 1e-10
+    # Without the bond (q_4, q_5) the chain's H is outside the space.
+    broken = HamiltonianRegressor(
+        degree=4, domain=box, separable=True, couplings=bonds[:3] + bonds[4:]).fit(X, y)
+    assert relative_h_error(broken, chain, test) > 1e-3
+
+
+@pytest.mark.parametrize("couplings, match", [
+    ([(0,)], "at least two distinct"),
+    ([(0, 0)], "at least two distinct"),
+    ([(0, 16)], r"in \[0, 16\)"),
+    ([0, 1], "got the group 0"),
+    ([(0.5, 1)], "got the group"),
+    ([(True, 1)], "got the group"),
+])
+def test_bad_couplings_name_the_parameter_and_the_fix(couplings, match):
+    X = np.random.default_rng(0).standard_normal((200, 16))
+    model = HamiltonianRegressor(degree=2, couplings=couplings)
+    with pytest.raises(ValueError, match=match) as error:
+        model.fit(X, X)
+    assert "couplings" in str(error.value) and "range(d - 1)" in str(error.value)
+
+
 @pytest.fixture(scope="module")
 def separable_henon_heiles():
     system = henon_heiles()

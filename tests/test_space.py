@@ -40,7 +40,7 @@ def test_total_degree_count_order_and_uniqueness(n_states, degree):
 
 
 def brute_force(n_states, degree, periodic=None, momentum_degree=None, separable=False,
-                max_interaction=None):
+                max_interaction=None, couplings=None):
     periodic = np.zeros(n_states, bool) if periodic is None else np.asarray(periodic)
     d = n_states // 2
     ranges = [range(-degree, degree + 1) if periodic[i] else range(degree + 1)
@@ -56,6 +56,10 @@ def brute_force(n_states, degree, periodic=None, momentum_degree=None, separable
             continue
         if max_interaction is not None and np.count_nonzero(a) > max_interaction:
             continue
+        depends = set(np.flatnonzero(a))
+        if couplings is not None and len(depends) > 1 and not any(
+                depends <= set(group) for group in couplings):
+            continue
         rows.add(alpha)
     return rows
 
@@ -68,6 +72,10 @@ def brute_force(n_states, degree, periodic=None, momentum_degree=None, separable
         (6, 4, dict(max_interaction=2)),
         (4, 4, dict(periodic=[0, 0, 1, 1], momentum_degree=2)),
         (4, 5, dict(periodic=[0, 1, 0, 1], separable=True, max_interaction=1)),
+        # Overlapping groups of different sizes, a group across the halves.
+        (6, 4, dict(couplings=[(0, 1, 2), (2, 3), (3, 5)])),
+        (6, 4, dict(couplings=[(0, 3), (1, 2), (3, 4, 5)], separable=True)),
+        (6, 3, dict(couplings=[(0, 1, 2, 3)], max_interaction=2, periodic=[0, 0, 0, 1, 0, 1])),
     ],
 )
 def test_generated_sets_equal_filtered_total_degree(n_states, degree, constraints):
@@ -88,6 +96,10 @@ def test_mechanical_fourier_and_lattice_counts():
     assert index_set(16, 4, separable=True, max_interaction=2).shape[0] == 400
     # 64 variables: generated directly (a total-degree list would hold 814 385).
     assert index_set(64, 4, separable=True, max_interaction=2).shape[0] == 6208
+    # Nearest neighbours only: 64 x 4 functions of one variable, and 31 bonds
+    # x 6 pairs of positive degrees with sum <= 4.
+    bonds = [(32 + i, 33 + i) for i in range(31)]
+    assert index_set(64, 4, separable=True, couplings=bonds).shape[0] == 64 * 4 + 31 * 6
 
 
 # ------------------------------------------------------------- 1-D families

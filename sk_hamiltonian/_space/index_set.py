@@ -7,8 +7,9 @@ periodic one (``+k``: ``cos(k theta)``, ``-k``: ``sin(k theta)``, see
 
 :func:`index_set` *generates* the multi-indices that satisfy every constraint
 (total degree, degree in the momenta, separability, number of interacting
-variables) rather than filtering a total-degree list, so that spaces over many
-variables with few interactions (a 64-variable lattice) cost what they hold.
+variables, which variables may interact) rather than filtering a total-degree
+list, so that spaces over many variables with few interactions (a 64-variable
+lattice) cost what they hold.
 """
 
 from itertools import combinations
@@ -24,14 +25,19 @@ def _positive_compositions(size, max_total):
     return np.array(rows, dtype=np.intp).reshape(-1, size)
 
 
-def _supports(n_states, size, separable):
+def _supports(n_states, size, separable, couplings=None):
     """Sets of ``size`` variables a basis function may depend on, as rows."""
     if not separable:
         groups = [range(n_states)]
     else:
         half = n_states // 2
         groups = [range(half), range(half, n_states)]
-    rows = [c for group in groups for c in combinations(group, size)]
+    if couplings is not None and size > 1:
+        # Every variable of a coupled function lies in one coupling group
+        # (and, if separable, in one half).
+        groups = [sorted(set(c) & set(g)) for c in couplings for g in groups]
+    # Overlapping groups share subsets: each set once, in a fixed order.
+    rows = sorted({c for group in groups for c in combinations(group, size)})
     return np.array(rows, dtype=np.intp).reshape(-1, size)
 
 
@@ -43,6 +49,7 @@ def index_set(
     momentum_degree=None,
     separable=False,
     max_interaction=None,
+    couplings=None,
     include_constant=False,
 ):
     """Multi-indices of a tensor-product space, in graded order.
@@ -64,6 +71,10 @@ def index_set(
         No basis function depends on both a momentum and a position.
     max_interaction : int, default=None
         Most variables one basis function depends on; None: no limit.
+    couplings : sequence of sequences of int, default=None
+        Groups of variables that may be coupled: a basis function of two or
+        more variables enters only if they all lie in one group (functions of
+        one variable always may). None: any variables may be coupled.
     include_constant : bool, default=False
         Whether the zero multi-index comes first.
 
@@ -78,7 +89,7 @@ def index_set(
     largest = n_states if max_interaction is None else min(max_interaction, n_states)
     blocks = [np.zeros((1, n_states), dtype=np.intp)] if include_constant else []
     for size in range(1, min(largest, degree) + 1):
-        supports = _supports(n_states, size, separable)
+        supports = _supports(n_states, size, separable, couplings)
         parts = _positive_compositions(size, degree)
         if supports.size == 0 or parts.size == 0:
             continue
