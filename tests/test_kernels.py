@@ -233,14 +233,32 @@ def _blas_threads_now():
     return [pool["num_threads"] for pool in threadpool_info() if pool["user_api"] == "blas"]
 
 
-def test_limit_blas_small_work_runs_on_one_thread():
+def test_limit_blas_small_work_runs_on_one_thread(monkeypatch):
     from sk_hamiltonian._kernels import threads
 
     before = _blas_threads_now()
-    with threads.limit_blas(threads.SERIAL_FLOPS / 10):
+    with threads.limit_blas(threads.PARALLEL_FLOPS / 10):
         assert all(n == 1 for n in _blas_threads_now())
     assert _blas_threads_now() == before
     with threads.limit_blas(threads.SERIAL_FLOPS * 10):
         assert _blas_threads_now() == before
     assert threads.blas_threads(threads.SERIAL_FLOPS * 10) is None
     assert threads.gram_flops(1000, 20) == 0.5 * 1000 * 20**2
+    # Work in between: every core only while one is idle.
+    middle = (threads.PARALLEL_FLOPS * threads.SERIAL_FLOPS) ** 0.5
+    monkeypatch.setattr(threads, "idle_cores", lambda: 0.0)
+    assert threads.blas_threads(middle) == 1
+    with threads.limit_blas(middle):
+        assert all(n == 1 for n in _blas_threads_now())
+    monkeypatch.setattr(threads, "idle_cores", lambda: 1.0)
+    assert threads.blas_threads(middle) is None
+    assert threads.blas_threads(threads.PARALLEL_FLOPS / 10) == 1
+
+
+def test_idle_cores_counts_other_processes_only():
+    from sk_hamiltonian._kernels import threads
+
+    idle = threads.idle_cores()
+    # This process's own running threads (the test's) are not "others".
+    assert idle <= (os.cpu_count() or 1) - 1
+    assert threads._own_running_tasks() >= 1

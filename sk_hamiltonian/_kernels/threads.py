@@ -18,18 +18,41 @@ columns   multiply-adds  2 threads / 1, run 1  2 threads / 1, run 2
 ========  =============  ==================  ==================
 
 Below 1e10 multiply-adds the second thread lost in both runs, by far on
-small products; above, it won once. :func:`limit_blas` therefore runs work
-below :data:`SERIAL_FLOPS` on one BLAS thread and leaves the BLAS as the
-user configured it (all cores by default) for larger work.
+small products; above, it won once. The same script on the same VM with a
+core to spare tells the other half (2026-11-25, load average 1.2, then with
+one CPU-bound competitor started 20 s before, load 1.5-1.7):
+
+========  =============  ===================  ====================
+columns   multiply-adds  2 threads / 1, idle  2 threads / 1, busy
+========  =============  ===================  ====================
+30        9e6            1.08                 0.98
+100       1e8            0.59                 2.09
+200       4e8            0.45                 1.97
+400       1.6e9          0.55                 1.60
+800       6.4e9          0.79                 1.37
+1 000     2e10           0.53                 1.14
+========  =============  ===================  ====================
+
+A second thread pays from about 1e8 multiply-adds when a core is idle, and
+costs up to twice the time when it is not. :func:`limit_blas` therefore runs
+work below :data:`PARALLEL_FLOPS` on one BLAS thread, work up to
+:data:`SERIAL_FLOPS` on one thread unless a core is idle *now*
+(:func:`idle_cores`), and leaves larger work to the BLAS as the user
+configured it (all cores by default). A BLAS may sum in another order on
+another number of threads, so a fit on an idle machine and the same fit on a
+busy one agree to round-off, not bit for bit.
 """
 
+import os
 from contextlib import nullcontext
 
 # Multiply-adds below which a BLAS call or a whole fit runs on one thread
-# (the table above). A Gram update of n_rows x n_columns costs n_rows *
-# n_columns**2 / 2: 1e10 is, e.g., 32 000 rows (8 000 states of 4
-# variables) of 800 columns.
+# unless a core is idle (the tables above). A Gram update of n_rows x n_columns
+# costs n_rows * n_columns**2 / 2: 1e10 is, e.g., 32 000 rows (8 000 states
+# of 4 variables) of 800 columns.
 SERIAL_FLOPS = 1e10
+# From here to SERIAL_FLOPS, every core when one is idle (the second table).
+PARALLEL_FLOPS = 1e8
 
 _controller = None
 
@@ -44,9 +67,58 @@ def _threadpools():
     return _controller
 
 
+def _own_running_tasks():
+    """Threads of this process that are runnable now (Linux), counting the caller."""
+    running = 0
+    for task in os.listdir("/proc/self/task"):
+        try:
+            with open(f"/proc/self/task/{task}/stat") as handle:
+                # "tid (comm) state ...": the name may hold spaces and parentheses.
+                state = handle.read().rpartition(")")[2].split()[0]
+        except (OSError, IndexError):
+            continue
+        running += state == "R"
+    return max(running, 1)
+
+
+def idle_cores():
+    """Cores that no other process is running on now, besides the caller's own.
+
+    Linux: the runnable tasks of ``/proc/loadavg`` (an instant count, so a
+    competitor that started seconds ago counts) minus this process's own
+    runnable threads (a BLAS's workers spin for a while after each call).
+    Elsewhere the one-minute load average stands in, and where neither is
+    available the answer is 0, so that small work stays on one thread.
+
+    Returns
+    -------
+    idle : float
+    """
+    cores = os.cpu_count() or 1
+    try:
+        with open("/proc/loadavg") as handle:
+            runnable = int(handle.read().split()[3].split("/")[0])
+        others = runnable - _own_running_tasks()
+    except (OSError, ValueError, IndexError):
+        try:
+            others = os.getloadavg()[0] - 1
+        except (AttributeError, OSError):
+            return 0.0
+    return float(cores - 1 - others)
+
+
 def blas_threads(flops):
-    """BLAS threads for work of ``flops`` multiply-adds: 1 below :data:`SERIAL_FLOPS`, else None (as configured)."""
-    return 1 if flops < SERIAL_FLOPS else None
+    """BLAS threads for work of ``flops`` multiply-adds: 1, or None (as configured).
+
+    One thread below :data:`PARALLEL_FLOPS`, and below :data:`SERIAL_FLOPS`
+    unless :func:`idle_cores` finds a core idle; None (the BLAS's own
+    setting) otherwise.
+    """
+    if flops < PARALLEL_FLOPS:
+        return 1
+    if flops < SERIAL_FLOPS and idle_cores() < 1:
+        return 1
+    return None
 
 
 def limit_blas(flops):
