@@ -153,9 +153,10 @@ def test_stability_quick(runs):
         if r["status"] == "failed":
             assert _finite(r, "fail_time"), r
     # The sparse rows with the cubic smoothing: only where the data are noisy.
-    q3 = [r for r in rows if r["method"] == "SP-sparse-Q3-RK4"]
-    assert q3 and all(r["experiment"] in ("noise", "long_horizon") and float(r["value"]) > 0
-                      for r in q3), q3
+    for method in ("SP-sparse-Q3-RK4", "SP-CV-RK4"):
+        noisy = [r for r in rows if r["method"] == method]
+        assert noisy and all(r["experiment"] in ("noise", "long_horizon")
+                             and float(r["value"]) > 0 for r in noisy), noisy
     truth = [r for r in rows if r["experiment"] == "cherry_blowup" and r["method"] == "truth"]
     assert len(truth) == 1 and 27 < float(truth[0]["blowup_time"]) < 29
 
