@@ -229,7 +229,9 @@ def fit_all(scene, Xt, ps, X=None, quick=False):
         sparse.append(("SP-sparse-Q3", HamiltonianRegressor, DerivativeTransformer(
             dt=scene.dt, method="polynomial", degree=LOW_Q).fit_transform(X)))
     if scene.noise > 0 and X is not None:
-        fitted["SP-CV-RK4"] = (_fit_sp_cv(scene, X, quick), "rk4")
+        # Every de-noising degree keeps every sample: the equations are SP's.
+        model = _fit_sp_cv(scene, X, quick)
+        fitted["SP-CV-RK4"] = ((model, float(model.cond_), int(model.n_terms_), K * m), "rk4")
     for name, cls, data in sparse:
         # Fewer trajectories than folds: one trajectory per fold.
         try:
@@ -270,9 +272,7 @@ def _fit_sp_cv(scene, X, quick):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         search = GridSearchCV(pipe, grid, cv=min(2 if quick else 5, len(X))).fit(X)
-    model = search.best_estimator_[-1]
-    n_rows = sum(len(s) for s in C.split_layout(search.best_estimator_[0].transform(X))[0])
-    return (model, float(model.cond_), int(model.n_terms_), n_rows * X.shape[-1])
+    return search.best_estimator_[-1]
 
 
 def training_box(Xt):

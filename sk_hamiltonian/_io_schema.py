@@ -53,10 +53,12 @@ class Encoder:
             kind = type(value).__name__ if isinstance(value, (list, tuple)) else "ndarray"
             if kind != "ndarray" and all(isinstance(v, str) for v in value) and value:
                 return {"strings": list(value), "as": kind}
-            if kind != "ndarray" and _is_ragged(value):
-                # Groups of different sizes (``couplings``): item by item.
+            try:
+                array = np.asarray(value)
+            except ValueError:
+                # Groups of different sizes (``couplings``) have no array
+                # form: item by item (an ndarray is always rectangular).
                 return {"items": [self.encode(v, what) for v in value], "as": kind}
-            array = np.asarray(value)
             if array.dtype.kind == "O" and all(isinstance(v, str) for v in array.ravel()):
                 return {"strings": [str(v) for v in array.ravel()], "as": "ndarray"}
             if array.dtype.kind not in ARRAY_KINDS:
@@ -72,15 +74,6 @@ class Encoder:
             f"cannot save {what}: a value of type {type(value).__name__}; model files hold "
             f"None, booleans, numbers, strings and numeric arrays only."
         )
-
-
-def _is_ragged(value):
-    """Whether a list or tuple of sequences has no rectangular array form."""
-    try:
-        np.asarray(value)
-    except ValueError:
-        return True
-    return False
 
 
 def decode(value, container, what, depth=0):

@@ -156,6 +156,24 @@ def symmetric_from_upper(upper):
     return full + np.triu(full, 1).T
 
 
+def _assembled_on_one_thread(blocks):
+    """The blocks of an iterable, each one produced on one BLAS thread.
+
+    NumPy may bring its own OpenBLAS besides SciPy's, whose worker threads
+    keep spinning for a while after a multi-threaded call, on the core that the
+    next rank-k update's second thread needs; measured on a degree-14 fit
+    (2 cores, 116 blocks of 840 x 2380), the updates then ran at one thread's
+    speed.
+    """
+    blocks = iter(blocks)
+    while True:
+        with limit_blas(0):
+            block = next(blocks, None)
+        if block is None:
+            return
+        yield block
+
+
 class NormalEquations:
     """``A^T A`` and ``A^T b`` accumulated over row blocks, by column groups.
 
@@ -197,22 +215,11 @@ class NormalEquations:
 
     def add_blocks(self, blocks, progress=None):
         """Add every block of an iterable of ``(A, b)`` or ``(A, b, group)``."""
-        # The blocks are assembled on one BLAS thread. NumPy may bring its own
-        # OpenBLAS besides SciPy's, whose worker threads keep spinning for a
-        # while after a multi-threaded call, on the core that the next rank-k
-        # update's second thread needs; measured on a degree-14 fit (2 cores,
-        # 116 blocks of 840 x 2380), the updates then ran at one thread's speed.
-        blocks = iter(blocks)
-        k = 0
-        while True:
-            with limit_blas(0):
-                block = next(blocks, None)
-            if block is None:
-                return self
+        for k, block in enumerate(_assembled_on_one_thread(blocks), start=1):
             self.add(*block)
-            k += 1
             if progress is not None:
                 progress(k, self.n_rows)
+        return self
 
     def __iadd__(self, other):
         """Add another accumulator with the same groups (e.g. from another chunk)."""
