@@ -8,6 +8,8 @@ import os
 import threading
 from contextlib import contextmanager
 
+from ._kernels import numba_available
+
 _KERNELS = ("auto", "numpy", "numba")
 # The environment variable SK_HAMILTONIAN_KERNELS sets the process-wide
 # default (e.g. to run a test suite on one path); unknown values are ignored
@@ -153,7 +155,5 @@ def use_numba():
     kernels = _thread_config()["kernels"]
     if kernels == "numpy":
         return False
-    from ._kernels import numba_available
-
     # "numba" was checked by set_config; "auto" falls back quietly.
     return numba_available()

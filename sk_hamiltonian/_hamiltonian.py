@@ -3,7 +3,6 @@
 import warnings
 
 import numpy as np
-from sklearn.utils.validation import check_is_fitted
 
 from ._base import BaseTrajectoryRegressor
 from ._conservation import decorrelated, energy_trend
@@ -402,7 +401,7 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
         H : ndarray of shape X.shape[:-1]
             Values of ``H~``.
         """
-        check_is_fitted(self)
+        self._check_fitted()
         flat, lead = self._check_states(X)
         self._warn_outside(flat)
         return self._hamiltonian(flat).reshape(lead)
@@ -420,7 +419,7 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
         grad : ndarray of the same shape as X
             ``(dH~/dp, dH~/dq)`` at each state.
         """
-        check_is_fitted(self)
+        self._check_fitted()
         flat, lead = self._check_states(X)
         self._warn_outside(flat)
         return self._gradient(flat).reshape(lead + (self.n_features_in_,))

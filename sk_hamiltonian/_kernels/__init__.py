@@ -50,72 +50,70 @@ def _compiled():
     return _JIT
 
 
-def bound_tree(space, coef):
-    """The tree of ``space`` and ``coef`` bound to it, both cached on the space.
+def bound_kernels(space, coef):
+    """The compiled kernels' view of ``space`` with ``coef`` bound to it.
 
-    The bound coefficients are a dense (width, K, n_prefixes) array: ``[c, k,
-    p]`` is target ``k``'s coefficient of the function with prefix ``p`` and
-    last column ``c``. The binding is cached while the coefficients keep
-    their values (:func:`~sk_hamiltonian._space.space.cached_binding`), so
-    that changing ``coef`` in place is seen.
+    Returns ``(tree, bound, flat)``, cached on the space while ``coef``
+    keeps its values (one comparison of the values for both bindings:
+    :func:`~sk_hamiltonian._space.space.cached_binding`, so that changing
+    ``coef`` in place is seen):
+
+    - ``tree``: the arrays of :func:`.tree.tree_arrays` (cached on the space);
+    - ``bound``: the coefficients bound to the tree, a dense (width, K,
+      n_prefixes) array: ``[c, k, p]`` is target ``k``'s coefficient of the
+      function with prefix ``p`` and last column ``c``;
+    - ``flat``: the flat contractions, ``(use, keys0, rows0, W0, keys1,
+      rows1, W1, keys2, rows2, W2)``: for each derivative order, whether the
+      space contracts it flat (:meth:`ModelSpace._flat`), the functions'
+      keys into the compiled work table, the row of the root's results each
+      adds to (0: the value; ``1 + i``: d/dx_i; ``1 + m + i m + j``: d2/dx_i
+      dx_j) and its coefficients (n_functions, K). Orders contracted by the
+      tree get empty arrays.
     """
-    from .._space.space import cached_binding
-
     tree = space.__dict__.get("_kernel_tree")
     if tree is None:
         from .tree import tree_arrays
 
         tree = space.__dict__["_kernel_tree"] = tree_arrays(space)
-    (arrays, order) = tree
+    arrays, order = tree
 
     def bind(coef):
         coef2 = np.asarray(coef, dtype=float).reshape(space.n_terms, -1)
-        leaf_start, leaf_column = arrays[4], arrays[5]
-        n_prefixes = leaf_start.size - 1
-        leaf_parent = np.repeat(np.arange(n_prefixes), np.diff(leaf_start))
-        # Dense (width, K, n_prefixes): the leaves are then a few vectorized
-        # passes over the prefixes, with no branch per prefix.
-        bound = np.zeros((arrays[10], coef2.shape[1], n_prefixes))
-        bound[leaf_column, :, leaf_parent] = coef2[order]
-        return bound
+        return _bind_tree(arrays, order, coef2), _bind_flat(space, coef2)
 
-    return arrays, cached_binding(space._bindings, "jit tree", coef, bind)
+    bound, flat = space._binding("jit", coef, bind)
+    return arrays, bound, flat
 
 
-def bound_flat(space, coef):
-    """The flat contractions of ``space`` bound to ``coef``, for :func:`._jit.contract_root`.
+def _bind_tree(arrays, order, coef2):
+    leaf_start, leaf_column = arrays[4], arrays[5]
+    n_prefixes = leaf_start.size - 1
+    leaf_parent = np.repeat(np.arange(n_prefixes), np.diff(leaf_start))
+    # Dense (width, K, n_prefixes): the leaves are then a few vectorized
+    # passes over the prefixes, with no branch per prefix.
+    bound = np.zeros((arrays[10], coef2.shape[1], n_prefixes))
+    bound[leaf_column, :, leaf_parent] = coef2[order]
+    return bound
 
-    A tuple ``(use, keys0, rows0, W0, keys1, rows1, W1, keys2, rows2, W2)``:
-    for each derivative order, whether the space contracts it flat
-    (:meth:`ModelSpace._flat`), the functions' keys into the compiled work
-    table, the row of the root's results each adds to (0: the value; ``1 +
-    i``: d/dx_i; ``1 + m + i m + j``: d2/dx_i dx_j) and its coefficients
-    (n_functions, K). Orders contracted by the tree get empty arrays. Cached
-    while ``coef`` keeps its values.
-    """
-    from .._space.space import cached_binding
 
-    def bind(coef):
-        coef2 = np.asarray(coef, dtype=float).reshape(space.n_terms, -1)
-        m = space.n_states
-        use = np.zeros(3, dtype=np.bool_)
-        parts = []
-        for order in range(3):
-            flat = space._flat(order, kernels="numba")
-            if flat is None:
-                parts += [np.zeros((0, 1), np.int64), np.zeros(0, np.int64),
-                          np.zeros((0, coef2.shape[1]))]
-                continue
-            use[order] = True
-            q = flat.patterns
-            row = [0] if order == 0 else (
-                [1 + p[0] for p in q] if order == 1 else [1 + m + i * m + j for i, j in q])
-            parts += [np.ascontiguousarray(flat.jit_keys),
-                      np.asarray(row, dtype=np.int64)[flat.pattern],
-                      np.ascontiguousarray(coef2[flat.terms])]
-        return (use, *parts)
-
-    return cached_binding(space._bindings, "jit flat", coef, bind)
+def _bind_flat(space, coef2):
+    m = space.n_states
+    use = np.zeros(3, dtype=np.bool_)
+    parts = []
+    for order in range(3):
+        flat = space._flat(order, kernels="numba")
+        if flat is None:
+            parts += [np.zeros((0, 1), np.int64), np.zeros(0, np.int64),
+                      np.zeros((0, coef2.shape[1]))]
+            continue
+        use[order] = True
+        q = flat.patterns
+        row = [0] if order == 0 else (
+            [1 + p[0] for p in q] if order == 1 else [1 + m + i * m + j for i, j in q])
+        parts += [np.ascontiguousarray(flat.jit_keys),
+                  np.asarray(row, dtype=np.int64)[flat.pattern],
+                  np.ascontiguousarray(coef2[flat.terms])]
+    return (use, *parts)
 
 
 def contract(space, X, coef, order):
@@ -139,8 +137,7 @@ def contract(space, X, coef, order):
     hess : ndarray of shape (n_samples, n_states, n_states, K) or None (order < 2)
     """
     _jit = _compiled()
-    tree, bound = bound_tree(space, coef)
-    flat = bound_flat(space, coef)
+    tree, bound, flat = bound_kernels(space, coef)
     X = np.ascontiguousarray(X, dtype=float)
     n, m = X.shape
     K = bound.shape[1]
@@ -180,6 +177,9 @@ def in_threads(part, n, minimum):
     most ``numba.get_num_threads()`` threads.
     """
     global _POOL
+    if n < 2 * minimum:  # one slice, whatever the thread count
+        part(slice(0, n))
+        return
     import numba
 
     # numba's thread count (NUMBA_NUM_THREADS, numba.set_num_threads), all

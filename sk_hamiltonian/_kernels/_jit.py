@@ -14,7 +14,7 @@ A *tree* is the tuple built by :func:`.tree.tree_arrays`::
      level_parent, level_key, node_counts, width)
 
 and the coefficients are bound to it as a dense ``(width, K, n_prefixes)``
-array (:func:`sk_hamiltonian._kernels.bound_tree`). The carried derivatives
+array (:func:`sk_hamiltonian._kernels.bound_kernels`). The carried derivatives
 of the nodes of a level are ``P = 1 + m + m * m`` rows of nodes: the value,
 ``d/dx_i`` at ``1 + i`` and ``d2/dx_i dx_j`` (``i <= j``) at ``1 + m + i * m
 + j``.
@@ -180,7 +180,7 @@ def flat_contract(T, keys, rows, W, root):
 def contract_root(x, tree, C, flat, order, T, cur, nxt, pad):
     """Tables at the state ``x``, then the root's results by the flat or the tree contraction.
 
-    ``flat`` is the tuple of :func:`sk_hamiltonian._kernels.bound_flat`:
+    ``flat`` is the last item of :func:`sk_hamiltonian._kernels.bound_kernels`:
     ``(use, keys0, rows0, W0, keys1, rows1, W1, keys2, rows2, W2)``,
     ``use[order]`` saying whether order ``order`` contracts flat (into the
     work array ``cur``, as the tree does).

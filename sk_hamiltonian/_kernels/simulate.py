@@ -11,7 +11,7 @@ import math
 
 import numpy as np
 
-from . import PARALLEL_ROWS, bound_flat, bound_tree, in_threads
+from . import PARALLEL_ROWS, bound_kernels, in_threads
 
 METHOD_CODES = {"rk4": 0, "avf": 1, "leapfrog": 2, "yoshida4": 2}
 
@@ -68,14 +68,11 @@ def integrate_compiled(integrator, y0, t, max_step):
         dtype=np.int64,
     )
     h = intervals / np.maximum(n_sub, 1) if n_times > 1 else np.zeros(0)
-    tree, C = bound_tree(space, model.coef)
-    flat = bound_flat(space, model.coef)
+    tree, C, flat = bound_kernels(space, model.coef)
     if code == 2:
         (kinetic, c_p), (potential, c_q) = model.split
-        tree, C = bound_tree(potential, c_q)
-        flat = bound_flat(potential, c_q)
-        tree2, C2 = bound_tree(kinetic, c_p)
-        flat2 = bound_flat(kinetic, c_p)
+        tree, C, flat = bound_kernels(potential, c_q)
+        tree2, C2, flat2 = bound_kernels(kinetic, c_p)
         lf_weights = np.asarray(integrator.weights, dtype=float)
     else:
         tree2, C2, flat2, lf_weights = tree, C, flat, np.zeros(0)

@@ -38,12 +38,13 @@ def outside_domain(X, domain, periodic, slack=0.0):
     """
     low, high = domain[:, 0], domain[:, 1]
     margin = slack * (high - low)
-    # Periodic variables get infinite bounds: no column selection (which
-    # costs more than the comparisons for the one state of a prediction).
+    outside = (X < low - margin) | (X > high + margin)
+    # Periodic variables masked only when there are any: the one state of a
+    # prediction pays for every small-array operation.
     periodic = np.asarray(periodic, dtype=bool)
-    below = np.where(periodic, -np.inf, low - margin)
-    above = np.where(periodic, np.inf, high + margin)
-    return ((X < below) | (X > above)).any(axis=1)
+    if periodic.any():
+        outside &= ~periodic
+    return outside.any(axis=1)
 
 
 def cached_binding(store, key, coef, make):
@@ -192,6 +193,10 @@ class ModelSpace:
         if plan is not None:
             return plan.cost * (order + 1)
         return 4 * self.n_terms * self.layout.n_slots
+
+    def _binding(self, key, coef, make):
+        """``make(coef)``, cached on this space under ``key`` (:func:`cached_binding`)."""
+        return cached_binding(self._bindings, key, coef, make)
 
     def _flat_bound(self, flat, coef):
         """:meth:`FlatPlan.bind` of ``coef``, cached (:func:`cached_binding`)."""
