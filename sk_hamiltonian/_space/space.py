@@ -7,6 +7,8 @@ on a period) and its coordinate map, and evaluates the tensor-product basis
 over a given set of multi-indices.
 """
 
+import functools
+
 import numpy as np
 
 from .. import _kernels
@@ -36,15 +38,26 @@ def outside_domain(X, domain, periodic, slack=0.0):
     -------
     outside : ndarray of shape (n_samples,) of bool
     """
-    low, high = domain[:, 0], domain[:, 1]
-    margin = slack * (high - low)
-    outside = (X < low - margin) | (X > high + margin)
-    # Periodic variables masked only when there are any: the one state of a
-    # prediction pays for every small-array operation.
-    periodic = np.asarray(periodic, dtype=bool)
-    if periodic.any():
-        outside &= ~periodic
-    return outside.any(axis=1)
+    # The bounds are cached by value: the one state of a prediction would
+    # pay more for computing them than for the comparisons.
+    domain = np.ascontiguousarray(domain, dtype=float)
+    below, above = _bounds(
+        domain.tobytes(), domain.shape[0], np.asarray(periodic, dtype=bool).tobytes(), float(slack)
+    )
+    return ((X < below) | (X > above)).any(axis=1)
+
+
+@functools.lru_cache(maxsize=64)
+def _bounds(domain, n_states, periodic, slack):
+    """Lower and upper bounds of :func:`outside_domain`, from the bytes of its arguments."""
+    domain = np.frombuffer(domain, dtype=float).reshape(n_states, 2)
+    periodic = np.frombuffer(periodic, dtype=bool)
+    margin = slack * (domain[:, 1] - domain[:, 0])
+    # Periodic variables get infinite bounds: they are never outside.
+    below = np.where(periodic, -np.inf, domain[:, 0] - margin)
+    above = np.where(periodic, np.inf, domain[:, 1] + margin)
+    below.flags.writeable = above.flags.writeable = False  # shared by every caller
+    return below, above
 
 
 def cached_binding(store, key, coef, make):
