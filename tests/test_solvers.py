@@ -142,6 +142,30 @@ def test_grouped_accumulation_equals_the_dense_normal_equations(layout):
         assert np.all(space.columns[columns, i] != 0)
 
 
+@pytest.mark.parametrize("n_columns", [5, 600])
+def test_grouped_scatter_equals_the_dense_gram_across_tiles(n_columns):
+    # Groups of increasing columns go through the flat scatter, a permuted
+    # one through np.ix_; 600 columns span several tiles of mirror_upper.
+    rng = np.random.default_rng(n_columns)
+    groups = [np.sort(rng.choice(n_columns, size, replace=False))
+              for size in (n_columns, n_columns // 2 + 1, 2)]
+    groups.append(rng.permutation(groups[1]))
+    accumulator = NormalEquations(n_columns, groups)
+    rows, targets = [], []
+    for g, columns in enumerate(groups):
+        A, b = rng.normal(size=(40, columns.size)), rng.normal(size=40)
+        accumulator.add(A, b, g)
+        full = np.zeros((40, n_columns))
+        full[:, columns] = A
+        rows.append(full)
+        targets.append(b)
+    A, b = np.concatenate(rows), np.concatenate(targets)
+    gram, rhs = accumulator.result()
+    assert np.array_equal(gram, gram.T)
+    assert np.allclose(gram, A.T @ A, rtol=1e-12, atol=1e-12 * np.abs(A.T @ A).max())
+    assert np.allclose(rhs, A.T @ b, rtol=1e-12, atol=1e-12 * np.abs(A.T @ b).max())
+
+
 def test_choose_solver_by_size():
     assert choose_solver("auto", 1000, 100) == "lstsq"
     assert choose_solver("auto", 10**6, 1000) == "normal"
