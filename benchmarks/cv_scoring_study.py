@@ -568,6 +568,32 @@ def box_truth(pipe, params, X, system, dt, seed, clean=None, max_energy=None):
     return truth
 
 
+def scene_data(scene, seed):
+    """A scene's system and its noisy and noise-free trajectories for one data seed."""
+    config = SCORE_SCENES[scene]
+    system = config["system"]()
+    X, clean = make_trajectories(
+        system, config["M"], config["n_intervals"], config["dt"], noise=config["noise"],
+        random_state=seed, return_clean=True, domain=config.get("domain"),
+    )
+    return system, X, clean
+
+
+def largest_energy(system, clean):
+    """The largest true energy along the noise-free trajectories."""
+    return float(max(system.hamiltonian(np.asarray(C)).max() for C in clean))
+
+
+def dump_name(path):
+    """``(scene, seed)`` of a file written by ``--dump``."""
+    import os
+    import re
+
+    name = os.path.basename(path)
+    match = re.fullmatch(r"(.+)-seed(\d+)-cv\d+\.pkl", name)
+    return match.group(1), int(match.group(2))
+
+
 def scores_one(scene, seed, folds, dump=None):
     """Pick with every candidate score (best mean) on one data seed; judge by the truth.
 
@@ -578,11 +604,8 @@ def scores_one(scene, seed, folds, dump=None):
     """
     global RECORD
     config = SCORE_SCENES[scene]
-    system, dt, J = config["system"](), config["dt"], config["n_intervals"]
-    X, clean = make_trajectories(
-        system, config["M"], J, dt, noise=config["noise"], random_state=seed,
-        return_clean=True, domain=config.get("domain"),
-    )
+    dt = config["dt"]
+    system, X, clean = scene_data(scene, seed)
     RECORD = [] if dump else None
     pipe = make_pipeline(DerivativeTransformer(dt=dt), HamiltonianRegressor())
     search = GridSearchCV(
@@ -594,9 +617,7 @@ def scores_one(scene, seed, folds, dump=None):
     seconds = time.perf_counter() - start
     results = search.cv_results_
     params = results["params"]
-    max_energy = None
-    if config.get("energy_capped"):
-        max_energy = float(max(system.hamiltonian(np.asarray(C)).max() for C in clean))
+    max_energy = largest_energy(system, clean) if config.get("energy_capped") else None
     truth = box_truth(
         pipe, params, X, system, dt, seed, clean if config.get("bounded") else None, max_energy
     )
@@ -632,33 +653,28 @@ def rejudge(paths, out):
     """
     import os
     import pickle
-    import re
 
     os.makedirs(out, exist_ok=True)
     for path in sorted(paths):
         with open(path, "rb") as f:
             run = pickle.load(f)
-        name = os.path.basename(path)
-        scene = re.sub(r"-seed\d+-cv\d+\.pkl$", "", name)
-        seed = int(re.search(r"-seed(\d+)-", name).group(1))
+        scene, seed = dump_name(path)
         config = SCORE_SCENES[scene]
-        system, dt = config["system"](), config["dt"]
-        X, clean = make_trajectories(
-            system, config["M"], config["n_intervals"], dt, noise=config["noise"],
-            random_state=seed, return_clean=True, domain=config.get("domain"),
-        )
         start = time.perf_counter()
-        if config.get("energy_capped"):
-            bound = run["truth"]  # drawn below the data's largest energy already
+        if config.get("energy_capped") or config.get("bounded"):
+            bound = run["truth"]  # drawn inside the data's energies already
         else:
-            max_energy = float(max(system.hamiltonian(np.asarray(C)).max() for C in clean))
+            system, X, clean = scene_data(scene, seed)
+            dt = config["dt"]
             pipe = make_pipeline(DerivativeTransformer(dt=dt), HamiltonianRegressor())
-            bound = box_truth(pipe, run["params"], X, system, dt, seed, None, max_energy)
+            bound = box_truth(
+                pipe, run["params"], X, system, dt, seed, None, largest_energy(system, clean)
+            )
         for kind in ("relative", "origin-free"):
             run["truth"][f"{kind}, bound"] = bound[kind]
-        with open(os.path.join(out, name), "wb") as f:
+        with open(os.path.join(out, os.path.basename(path)), "wb") as f:
             pickle.dump(run, f)
-        print(f"{name}: {time.perf_counter() - start:.0f} s", flush=True)
+        print(f"{os.path.basename(path)}: {time.perf_counter() - start:.0f} s", flush=True)
 
 
 def scores_study(scenes, seeds, folds, dump=None):
@@ -711,13 +727,12 @@ def reaggregate(paths):
     is left out, as ``GridSearchCV`` leaves out its NaN mean.
     """
     import pickle
-    import re
 
     rows = {}
     for path in sorted(paths):
         with open(path, "rb") as f:
             run = pickle.load(f)
-        scene = re.sub(r"-seed\d+-cv\d+\.pkl$", "", path.split("/")[-1])
+        scene, _ = dump_name(path)
         folds = {}
         for r in run["record"]:
             i = next(i for i, p in enumerate(run["params"])

@@ -225,7 +225,7 @@ class NormalEquations:
         b = np.asarray(b, dtype=float)
         with limit_blas(gram_flops(*A.shape)):
             blas.dsyrk(1.0, A, beta=1.0, c=self.grams[group], trans=1, lower=0, overwrite_c=1)
-            # A^T b by SciPy's BLAS too (see add_blocks).
+            # A^T b by SciPy's BLAS too (see _assembled_on_one_thread).
             product = (blas.dgemv(1.0, A, b, trans=1) if b.ndim == 1
                        else blas.dgemm(1.0, A, b.reshape(b.shape[0], -1), trans_a=1))
         if self.rhs is None:

@@ -213,7 +213,7 @@ class ModelSpace:
 
     def _flat_bound(self, flat, coef):
         """:meth:`FlatPlan.bind` of ``coef``, cached (:func:`cached_binding`)."""
-        return cached_binding(self._bindings, ("flat", flat.order), coef, flat.bind)
+        return self._binding(("flat", flat.order), coef, flat.bind)
 
     def _flat_contract(self, flat, X, coef):
         """Patterns of ``flat`` at ``X``, samples first: (n_samples, n_patterns) + coef.shape[1:]."""
@@ -224,7 +224,7 @@ class ModelSpace:
 
     def _bound(self, plan, coef):
         """The coefficient matrix of ``coef`` (:meth:`ContractionPlan.bind`), cached."""
-        return cached_binding(self._bindings, "tree", coef, plan.bind)
+        return self._binding("tree", coef, plan.bind)
 
     def _contract(self, X, coef, order):
         """Contraction results (n_patterns, K, n_samples) and patterns, or None."""
