@@ -77,6 +77,27 @@ def test_config_context_restores_on_error():
 
 
 @needs_numba
+@pytest.mark.parametrize("periodic", [False, True])
+def test_contractions_agree_on_a_set_with_holes(periodic):
+    # The compiled tree numbers each level's nodes by their largest child
+    # and skips the columns a node lacks; a random subset of terms (a sparse
+    # model's, not downward closed) leaves holes below the largest ones.
+    space = _space(4, 8, [False, False, periodic, periodic], {})
+    keep = np.random.default_rng(3).random(space.n_terms) < 0.6
+    space = ModelSpace(space.domain, space.powers[keep], space.periodic)
+    assert space._flat(1, kernels="numba", n_samples=50) is None  # the tree, not flat products
+    X = _states(space, 50)
+    coef = np.random.default_rng(4).standard_normal(space.n_terms)
+    results = {}
+    for kernels in ("numpy", "numba"):
+        with config_context(kernels=kernels):
+            results[kernels] = [space.value_dot(X, coef), space.gradient_dot(X, coef),
+                                space.hessian_dot(X, coef)]
+    for a, b in zip(results["numpy"], results["numba"]):
+        np.testing.assert_allclose(b, a, rtol=0, atol=1e-12 * np.abs(a).max())
+
+
+@needs_numba
 @pytest.mark.parametrize("spec", SPACES, ids=lambda s: f"m{s[0]}n{s[1]}{s[3]}{sum(s[2])}p")
 # 600 samples: split between threads on a machine with two cores or more.
 @pytest.mark.parametrize("n_samples", [1, 5, 300, 600])

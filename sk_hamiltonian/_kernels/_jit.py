@@ -6,12 +6,14 @@ the contraction of the coefficients along the prefix tree of the index set
 (see :mod:`sk_hamiltonian._space.contraction` for the idea): the leaves sum
 the last variable's table against each prefix's coefficients, and every level
 sums its nodes into their parents, carrying the value, the derivatives along
-the variables summed so far and (order 2) their second derivatives.
+the variables summed so far and (order 2) their second derivatives. Each sum over a
+column runs over the nodes that have it (``column_counts``), never over
+the zeros of the dense arrays.
 
 A *tree* is the tuple built by :func:`.tree.tree_arrays`::
 
     (family, degree, slope, offset, leaf_start, leaf_column, level_start,
-     level_parent, level_key, node_counts, width)
+     level_parent, level_key, node_counts, width, level_pos, column_counts)
 
 and the coefficients are bound to it as a dense ``(width, K, n_prefixes)``
 array (:func:`sk_hamiltonian._kernels.bound_kernels`). The carried derivatives
@@ -80,7 +82,7 @@ def contract_tables(T, tree, C, order, cur, nxt, pad):
     the compiler vectorizes; loops over each node's children would end in a
     mispredicted branch every few terms.
     """
-    level_start, level_parent, level_key, node_counts = tree[6], tree[7], tree[8], tree[9]
+    level_start, node_counts, counts = tree[6], tree[9], tree[12]
     m = T.shape[0]
     width, K, n_prefixes = C.shape
     last = m - 1
@@ -94,7 +96,7 @@ def contract_tables(T, tree, C, order, cur, nxt, pad):
                 t = T[last, r, c]
                 if t != 0.0:
                     coef = C[c, kk]
-                    for p in range(n_prefixes):
+                    for p in range(counts[0, c]):
                         out[p] += coef[p] * t
     # Level k (prefixes of length k, k = m - 1 .. 1) sums variable k - 1.
     # Each carried row of nodes is scattered into the level's padded
@@ -114,23 +116,23 @@ def contract_tables(T, tree, C, order, cur, nxt, pad):
         offset += width * n_parents
         for kk in range(K):
             _scatter(cur[0, kk], level_pad, pos)
-            _dense_sum(level_pad, T[v, 0], nxt[0, kk], n_parents)
+            _dense_sum(level_pad, T[v, 0], nxt[0, kk], n_parents, counts[L + 1])
             if order >= 1:
-                _dense_sum(level_pad, T[v, 1], nxt[1 + v, kk], n_parents)
+                _dense_sum(level_pad, T[v, 1], nxt[1 + v, kk], n_parents, counts[L + 1])
             if order >= 2:
-                _dense_sum(level_pad, T[v, 2], nxt[1 + m + v * m + v, kk], n_parents)
+                _dense_sum(level_pad, T[v, 2], nxt[1 + m + v * m + v, kk], n_parents, counts[L + 1])
             if order >= 1:
                 for j in range(k, m):
                     _scatter(cur[1 + j, kk], level_pad, pos)
-                    _dense_sum(level_pad, T[v, 0], nxt[1 + j, kk], n_parents)
+                    _dense_sum(level_pad, T[v, 0], nxt[1 + j, kk], n_parents, counts[L + 1])
                     if order >= 2:
-                        _dense_sum(level_pad, T[v, 1], nxt[1 + m + v * m + j, kk], n_parents)
+                        _dense_sum(level_pad, T[v, 1], nxt[1 + m + v * m + j, kk], n_parents, counts[L + 1])
             if order >= 2:
                 for i in range(k, m):
                     for j in range(i, m):
                         q = 1 + m + i * m + j
                         _scatter(cur[q, kk], level_pad, pos)
-                        _dense_sum(level_pad, T[v, 0], nxt[q, kk], n_parents)
+                        _dense_sum(level_pad, T[v, 0], nxt[q, kk], n_parents, counts[L + 1])
         cur, nxt = nxt, cur
     return cur[:, :, 0]
 
@@ -142,14 +144,14 @@ def _scatter(row, pad, pos):
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _dense_sum(pad, table, out, n_parents):
-    """``out[p] = sum_c pad[c * n_parents + p] * table[c]``."""
+def _dense_sum(pad, table, out, n_parents, counts):
+    """``out[p] = sum_c pad[c * n_parents + p] * table[c]``, ``p < counts[c]`` (the rest are zeros)."""
     for p in range(n_parents):
         out[p] = 0.0
     for c in range(table.shape[0]):
         t = table[c]
         if t != 0.0:
-            for p in range(n_parents):
+            for p in range(counts[c]):
                 out[p] += pad[c * n_parents + p] * t
 
 

@@ -8,6 +8,14 @@ The 1-D families become four arrays: family (0 Legendre, 1 Fourier), highest
 degree or frequency, and the affine map ``window = slope * x + offset`` of
 :class:`~sk_hamiltonian._space.tables.FactorTables`, so both paths read the
 same numbers.
+
+The nodes of each level are numbered by their largest child key, largest
+first, and ``column_counts`` says how many of them have a child of each
+column: a contraction over column ``c`` then runs over the first
+``column_counts[., c]`` nodes only. For a downward-closed index set (total
+degree, hyperbolic cross) those are exactly the nodes with that child, so
+no product by a zero coefficient is left (the dense (column, node) arrays
+of a degree-15 space in four variables are 3.4 times its 3 876 terms).
 """
 
 import numpy as np
@@ -25,7 +33,10 @@ def tree_arrays(space):
     -------
     tree : tuple
         ``(family, degree, slope, offset, leaf_start, leaf_column,
-        level_start, level_parent, level_key, node_counts, width, level_pos)``.
+        level_start, level_parent, level_key, node_counts, width, level_pos,
+        column_counts)``; ``column_counts[0, c]`` prefixes have a leaf in
+        column ``c``, and ``column_counts[1 + L, c]`` parents of level ``L``
+        a child of key ``c``, always the first ones.
     order : ndarray of shape (n_terms,)
         The terms in leaf order: bound coefficients are ``coef[order]``.
     """
@@ -44,6 +55,12 @@ def tree_arrays(space):
     if columns.shape[0] == 0:
         columns = np.zeros((0, m), dtype=np.intp)
     ids = prefix_ids(columns) if columns.shape[0] else [np.zeros(0, np.intp)] * (m + 1)
+    width = int(space.width)
+    column_counts = np.zeros((m, width), dtype=INDEX)
+    for k in range(m - 1, -1, -1):
+        # Nodes of prefix length k, by the largest key of their children.
+        ids[k], largest = _by_largest_child(ids[k], columns[:, k])
+        column_counts[m - 1 - k] = (largest[:, None] >= np.arange(width)).sum(axis=0)
     leaf_parent = ids[m - 1]
     n_prefixes = int(leaf_parent.max(initial=0)) + 1
     order = np.argsort(leaf_parent, kind="stable")
@@ -64,9 +81,24 @@ def tree_arrays(space):
     tree = (
         family, degree, slope, offset, leaf_start, leaf_column,
         np.array(starts, dtype=INDEX), cat(parents).astype(INDEX), cat(keys).astype(INDEX),
-        np.array(counts, dtype=INDEX), int(space.width),
+        np.array(counts, dtype=INDEX), width,
         # Each node's slot in its level's padded (column, parent) array.
         (cat(keys) * np.repeat(counts[1:], [p.size for p in parents]) + cat(parents)).astype(INDEX)
         if parents else np.zeros(0, dtype=INDEX),
+        column_counts,
     )
     return tree, order
+
+
+def _by_largest_child(ids, child_keys):
+    """Renumber nodes by the largest key of their children, largest first.
+
+    Returns the rows' new node ids and each new node's largest child key.
+    """
+    n_nodes = int(ids.max(initial=-1)) + 1
+    largest = np.full(n_nodes, -1, dtype=INDEX)
+    np.maximum.at(largest, ids, child_keys)
+    ranking = np.argsort(-largest, kind="stable")
+    new = np.empty(n_nodes, dtype=np.intp)
+    new[ranking] = np.arange(n_nodes)
+    return new[ids], largest[ranking]
