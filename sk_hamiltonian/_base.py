@@ -1,6 +1,7 @@
 """What the two regressors share: input handling, model space, simulation and scoring."""
 
 import copy
+import math
 import operator
 import warnings
 from numbers import Integral, Real
@@ -27,7 +28,7 @@ from ._solvers import choose_solver, warn_if_ill_conditioned
 from ._streaming import PartialFitState
 from ._space import ModelSpace, index_set
 from ._space.readable import ReadableBasis
-from ._space.space import outside_domain
+from ._space.space import SCALAR_ENTRIES, count_outside
 from ._trajectories import unpack_derivatives
 from .exceptions import DomainWarning
 
@@ -64,6 +65,13 @@ def check_time(t):
     if np.any(np.diff(t) <= 0):
         raise ValueError("t must be strictly increasing.")
     return t
+
+
+def _all_finite(X):
+    """``np.isfinite(X).all()``, on Python floats for a few entries (see ``count_outside``)."""
+    if X.size > SCALAR_ENTRIES:
+        return bool(np.isfinite(X).all())
+    return all(map(math.isfinite, X.ravel().tolist()))
 
 
 def _is_dask(X):
@@ -582,10 +590,10 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
     # ------------------------------------------------------------ evaluation
     def _warn_outside(self, X, domain=None, what="X", stacklevel=3):
         domain = self.domain_ if domain is None else domain
-        outside = outside_domain(X, domain, self.periodic_, slack=DOMAIN_SLACK)
-        if outside.any():
+        n_outside = count_outside(X, domain, self.periodic_, slack=DOMAIN_SLACK)
+        if n_outside:
             warnings.warn(
-                f"{outside.mean():.1%} of {what} lie outside the domain "
+                f"{n_outside / X.shape[0]:.1%} of {what} lie outside the domain "
                 f"{domain.tolist()}, where the model is not trusted.",
                 DomainWarning,
                 stacklevel=stacklevel,
@@ -657,7 +665,7 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
         if (
             type(X) is np.ndarray and X.dtype == np.float64 and X.ndim == 2
             and X.shape[0] > 0 and X.shape[1] == self.n_features_in_
-            and not hasattr(self, "feature_names_in_") and np.isfinite(X).all()
+            and not hasattr(self, "feature_names_in_") and _all_finite(X)
         ):
             return X
         return validate_data(self, X, reset=False)

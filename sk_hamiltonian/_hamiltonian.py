@@ -4,7 +4,9 @@ import warnings
 
 import numpy as np
 
+from . import _kernels
 from ._base import BaseTrajectoryRegressor
+from ._config import use_numba
 from ._conservation import decorrelated, energy_trend
 from ._design import column_groups, hamiltonian_blocks, quadrature_nodes
 from ._design_operator import DesignOperator
@@ -360,6 +362,9 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
         return self._eval_space.hessian_dot(X, self._eval_coef)
 
     def _vector_field(self, X):
+        if use_numba():
+            # One compiled pass with the structure applied (zero damping is none).
+            return _kernels.field(self._eval_space, X, self._eval_coef, self.damping_)
         return apply_structure(self._gradient(X), self._damping())
 
     def _jacobian(self, X):

@@ -198,6 +198,22 @@ def test_simulations_agree(name, method):
 
 
 @needs_numba
+@pytest.mark.filterwarnings("ignore::sk_hamiltonian.DomainWarning")
+@pytest.mark.parametrize("name", list(MODELS))
+@pytest.mark.parametrize("n_samples", [1, 7, 600])
+def test_predictions_agree(name, n_samples):
+    # predict's compiled field applies the structure (and damping) itself.
+    model = _fitted(**MODELS[name])
+    X = np.random.default_rng(5).uniform(-0.55, 0.55, size=(n_samples, 4))
+    results = {}
+    for kernels in ("numpy", "numba"):
+        with config_context(kernels=kernels):
+            results[kernels] = model.predict(X)
+    scale = np.abs(results["numpy"]).max()
+    np.testing.assert_allclose(results["numba"], results["numpy"], rtol=0, atol=1e-12 * scale)
+
+
+@needs_numba
 @pytest.mark.parametrize("method", ["rk4", "avf"])
 def test_compiled_failure_matches_numpy(method):
     model = _fitted("gradient")

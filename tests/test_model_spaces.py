@@ -221,3 +221,18 @@ def test_baseline_takes_the_same_model_spaces():
     assert vf.n_terms_ == 4 * (sp.n_terms_ + 1) == count_terms(vf, n_states=4)
     with pytest.raises(ValueError, match="even number"):
         VectorFieldRegressor(momentum_degree=2).fit(X[:, :3], y[:, :3])
+
+
+@pytest.mark.parametrize("n_samples", [1, 3, 200])
+def test_count_outside_agrees_with_outside_domain(n_samples):
+    # A few states are compared as Python floats, many as arrays: same count.
+    from sk_hamiltonian._space.space import count_outside, outside_domain
+
+    domain = np.array([[-1.0, 1.0], [0.0, 2.0], [-np.pi, np.pi]])
+    periodic = np.array([False, False, True])
+    X = np.random.default_rng(0).uniform(-1.3, 2.3, size=(n_samples, 3))
+    X[0] = [1.04, 2.0, 9.0]  # inside the 5 % slack; the periodic variable never counts
+    expected = int(outside_domain(X, domain, periodic, slack=0.05).sum())
+    assert count_outside(X, domain, periodic, slack=0.05) == expected
+    assert count_outside(X[:1], domain, periodic, slack=0.05) == 0
+    assert count_outside(X[:1], domain, periodic) == 1

@@ -8,6 +8,8 @@ path runs exactly as before.
 - :func:`contract`: value, gradient and Hessian of ``sum_j coef[j] phi_j``
   at many states (what :class:`~sk_hamiltonian._space.ModelSpace`'s
   ``value_dot``, ``gradient_dot`` and ``hessian_dot`` return);
+- :func:`field`: a model's vector field at many states (what ``predict``
+  returns), the Hamiltonian structure applied in the same compiled pass;
 - :mod:`.simulate`: whole fixed-step integrations as compiled loops;
 - :mod:`.threads`: BLAS threads chosen by problem size.
 """
@@ -150,6 +152,44 @@ def contract(space, X, coef, order):
 
     in_threads(part, n, PARALLEL_ROWS)
     return value, (grad if order >= 1 else None), (hess if order >= 2 else None)
+
+
+def field(space, X, coef, damping=None):
+    """The vector field of a model at the rows of ``X``, in one compiled pass per slice of rows.
+
+    Parameters
+    ----------
+    space : ModelSpace
+        The basis.
+    X : ndarray of shape (n_samples, n_states)
+        States.
+    coef : ndarray of shape (n_terms,) or (n_terms, n_states)
+        A Hamiltonian's coefficients (the field is ``(J^{-1} - Gamma) grad
+        H``), or a vector field's (``f_c = sum_j coef[j, c] phi_j``).
+    damping : ndarray of shape (n_states // 2,), default=None
+        ``Gamma``'s diagonal, for a Hamiltonian.
+
+    Returns
+    -------
+    dXdt : ndarray of shape (n_samples, n_states)
+    """
+    _jit = _compiled()
+    tree, bound, flat = bound_kernels(space, coef)
+    X = np.ascontiguousarray(X, dtype=float)
+    n, m = X.shape
+    kind = 0 if np.ndim(coef) == 1 else 1
+    gamma = np.zeros(m // 2) if damping is None else np.ascontiguousarray(damping, dtype=float)
+    out = np.empty((n, m))
+    K = bound.shape[1]
+    if n < 2 * PARALLEL_ROWS:  # the usual one slice, without building a closure
+        _jit.fields(kind, X, tree, bound, flat, gamma, out, *_work(tree, K, m))
+        return out
+
+    def part(rows):
+        _jit.fields(kind, X[rows], tree, bound, flat, gamma, out[rows], *_work(tree, K, m))
+
+    in_threads(part, n, PARALLEL_ROWS)
+    return out
 
 
 def _work(tree, K, m):

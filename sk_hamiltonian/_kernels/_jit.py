@@ -247,3 +247,26 @@ def evaluate(X, tree, coef, flat, order, value, grad, hess, T, cur, nxt, pad):
 def work(tree, K, m):
     """The work arrays of :func:`evaluate`."""
     return _work(tree, K, m)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def field_at(kind, tree, C, flat, gamma, x, T, cur, nxt, pad, f):
+    """The field at one state into ``f``: kind 0 ``(J^{-1} - Gamma) grad H``, kind 1 ``f_c = sum_j C[j, c] phi_j``."""
+    m = x.shape[0]
+    if kind == 0:
+        root = contract_root(x, tree, C, flat, 1, T, cur, nxt, pad)
+        d = m // 2
+        for i in range(d):
+            f[i] = -root[1 + d + i, 0] - gamma[i] * root[1 + i, 0]
+            f[d + i] = root[1 + i, 0]
+    else:
+        root = contract_root(x, tree, C, flat, 0, T, cur, nxt, pad)
+        for c in range(m):
+            f[c] = root[0, c]
+
+
+@njit(cache=True, nogil=True)
+def fields(kind, X, tree, C, flat, gamma, out, T, cur, nxt, pad):
+    """The field (:func:`field_at`) at the rows of ``X`` into ``out``, with the work arrays of :func:`work`."""
+    for s in range(X.shape[0]):
+        field_at(kind, tree, C, flat, gamma, X[s], T, cur, nxt, pad, out[s])

@@ -20,7 +20,7 @@ import math
 import numpy as np
 from numba import njit
 
-from ._jit import _work, contract_root
+from ._jit import _work, contract_root, field_at
 
 # The field, Jacobian and gradient are inlined (inline="always") into the
 # steps: a call of a compiled function that takes the tree and flat tuples
@@ -28,21 +28,6 @@ from ._jit import _work, contract_root
 # the contraction of a sparse model's dozen functions (measured: 16 x 2000
 # RK4 steps of the sparse Henon-Heiles model, 0.106 s CPU before, 0.050 s
 # after; benchmarks/bench_sparse.py).
-
-
-@njit(cache=True, nogil=True, inline="always")
-def _field(kind, tree, C, flat, gamma, x, T, cur, nxt, pad, f):
-    m = x.shape[0]
-    if kind == 0:
-        root = contract_root(x, tree, C, flat, 1, T, cur, nxt, pad)
-        d = m // 2
-        for i in range(d):
-            f[i] = -root[1 + d + i, 0] - gamma[i] * root[1 + i, 0]
-            f[d + i] = root[1 + i, 0]
-    else:
-        root = contract_root(x, tree, C, flat, 0, T, cur, nxt, pad)
-        for c in range(m):
-            f[c] = root[0, c]
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -108,16 +93,16 @@ def _invert(A, out):
 @njit(cache=True, nogil=True)
 def _rk4(kind, tree, C, flat, gamma, y, h, T, cur, nxt, pad, k1, k2, k3, k4, tmp):
     m = y.shape[0]
-    _field(kind, tree, C, flat, gamma, y, T, cur, nxt, pad, k1)
+    field_at(kind, tree, C, flat, gamma, y, T, cur, nxt, pad, k1)
     for i in range(m):
         tmp[i] = y[i] + (0.5 * h) * k1[i]
-    _field(kind, tree, C, flat, gamma, tmp, T, cur, nxt, pad, k2)
+    field_at(kind, tree, C, flat, gamma, tmp, T, cur, nxt, pad, k2)
     for i in range(m):
         tmp[i] = y[i] + (0.5 * h) * k2[i]
-    _field(kind, tree, C, flat, gamma, tmp, T, cur, nxt, pad, k3)
+    field_at(kind, tree, C, flat, gamma, tmp, T, cur, nxt, pad, k3)
     for i in range(m):
         tmp[i] = y[i] + h * k3[i]
-    _field(kind, tree, C, flat, gamma, tmp, T, cur, nxt, pad, k4)
+    field_at(kind, tree, C, flat, gamma, tmp, T, cur, nxt, pad, k4)
     for i in range(m):
         y[i] = y[i] + (h / 6.0) * (k1[i] + 2.0 * (k2[i] + k3[i]) + k4[i])
 
@@ -131,7 +116,7 @@ def _avf(kind, tree, C, flat, gamma, y, h, nodes, weights, rtol, max_iter, T, cu
         for j in range(m):
             J[i, j] = (1.0 if i == j else 0.0) - (0.5 * h) * J[i, j]
     _invert(J, M)
-    _field(kind, tree, C, flat, gamma, y, T, cur, nxt, pad, f)
+    field_at(kind, tree, C, flat, gamma, y, T, cur, nxt, pad, f)
     scale = 1.0
     for i in range(m):
         s = 0.0
@@ -148,7 +133,7 @@ def _avf(kind, tree, C, flat, gamma, y, h, nodes, weights, rtol, max_iter, T, cu
         for q in range(nodes.shape[0]):
             for i in range(m):
                 point[i] = y[i] + nodes[q] * (y1[i] - y[i])
-            _field(kind, tree, C, flat, gamma, point, T, cur, nxt, pad, f)
+            field_at(kind, tree, C, flat, gamma, point, T, cur, nxt, pad, f)
             for i in range(m):
                 avg[i] += weights[q] * f[i]
         for i in range(m):

@@ -38,18 +38,42 @@ def outside_domain(X, domain, periodic, slack=0.0):
     -------
     outside : ndarray of shape (n_samples,) of bool
     """
+    below, above, _ = _bounds_of(domain, periodic, slack)
+    return ((X < below) | (X > above)).any(axis=1)
+
+
+def count_outside(X, domain, periodic, slack=0.0):
+    """Number of rows of ``X`` that :func:`outside_domain` finds outside.
+
+    A few states (one prediction, one stage of a step) are compared as
+    Python floats: numpy's fixed cost per call is several times that of
+    the comparisons.
+    """
+    if X.size > SCALAR_ENTRIES:
+        return int(np.count_nonzero(outside_domain(X, domain, periodic, slack)))
+    _, _, pairs = _bounds_of(domain, periodic, slack)
+    return sum(
+        any(value < low or value > high for value, (low, high) in zip(row, pairs))
+        for row in X.tolist()
+    )
+
+
+# Up to this many entries, checks of states run on Python floats (see count_outside).
+SCALAR_ENTRIES = 32
+
+
+def _bounds_of(domain, periodic, slack):
     # The bounds are cached by value: the one state of a prediction would
     # pay more for computing them than for the comparisons.
     domain = np.ascontiguousarray(domain, dtype=float)
-    below, above = _bounds(
+    return _bounds(
         domain.tobytes(), domain.shape[0], np.asarray(periodic, dtype=bool).tobytes(), float(slack)
     )
-    return ((X < below) | (X > above)).any(axis=1)
 
 
 @functools.lru_cache(maxsize=64)
 def _bounds(domain, n_states, periodic, slack):
-    """Lower and upper bounds of :func:`outside_domain`, from the bytes of its arguments."""
+    """Bounds of :func:`outside_domain` (arrays, and (low, high) floats per variable), from the bytes of its arguments."""
     domain = np.frombuffer(domain, dtype=float).reshape(n_states, 2)
     periodic = np.frombuffer(periodic, dtype=bool)
     margin = slack * (domain[:, 1] - domain[:, 0])
@@ -57,7 +81,7 @@ def _bounds(domain, n_states, periodic, slack):
     below = np.where(periodic, -np.inf, domain[:, 0] - margin)
     above = np.where(periodic, np.inf, domain[:, 1] + margin)
     below.flags.writeable = above.flags.writeable = False  # shared by every caller
-    return below, above
+    return below, above, tuple(zip(below.tolist(), above.tolist()))
 
 
 def cached_binding(store, key, coef, make):
