@@ -6,9 +6,9 @@ the contraction of the coefficients along the prefix tree of the index set
 (see :mod:`sk_hamiltonian._space.contraction` for the idea): the leaves sum
 the last variable's table against each prefix's coefficients, and every level
 sums its nodes into their parents, carrying the value, the derivatives along
-the variables summed so far and (order 2) their second derivatives. Each sum over a
-column runs over the nodes that have it (``column_counts``), never over
-the zeros of the dense arrays.
+the variables summed so far and (order 2) their second derivatives. Each
+sum over a column runs over the nodes that have it (``column_counts``),
+never over the zeros of the dense arrays.
 
 A *tree* is the tuple built by :func:`.tree.tree_arrays`::
 
@@ -145,7 +145,7 @@ def _scatter(row, pad, pos):
 
 @njit(cache=True, nogil=True, inline="always")
 def _dense_sum(pad, table, out, n_parents, counts):
-    """``out[p] = sum_c pad[c * n_parents + p] * table[c]``, ``p < counts[c]`` (the rest are zeros)."""
+    """``out[p] = sum_c pad[c * n_parents + p] * table[c]``, over ``p < counts[c]`` (the rest are zeros)."""
     for p in range(n_parents):
         out[p] = 0.0
     for c in range(table.shape[0]):
@@ -251,7 +251,10 @@ def work(tree, K, m):
 
 @njit(cache=True, nogil=True, inline="always")
 def field_at(kind, tree, C, flat, gamma, x, T, cur, nxt, pad, f):
-    """The field at one state into ``f``: kind 0 ``(J^{-1} - Gamma) grad H``, kind 1 ``f_c = sum_j C[j, c] phi_j``."""
+    """The field at one state into ``f``.
+
+    Kind 0: ``(J^{-1} - Gamma) grad H``; kind 1: ``f_c = sum_j C[j, c] phi_j``.
+    """
     m = x.shape[0]
     if kind == 0:
         root = contract_root(x, tree, C, flat, 1, T, cur, nxt, pad)
@@ -267,6 +270,9 @@ def field_at(kind, tree, C, flat, gamma, x, T, cur, nxt, pad, f):
 
 @njit(cache=True, nogil=True)
 def fields(kind, X, tree, C, flat, gamma, out, T, cur, nxt, pad):
-    """The field (:func:`field_at`) at the rows of ``X`` into ``out``, with the work arrays of :func:`work`."""
+    """The field (:func:`field_at`) at the rows of ``X`` into ``out``.
+
+    With the work arrays of :func:`work`.
+    """
     for s in range(X.shape[0]):
         field_at(kind, tree, C, flat, gamma, X[s], T, cur, nxt, pad, out[s])

@@ -19,6 +19,9 @@ from .flat import FlatPlan, choose_flat
 from .fourier import fourier_column, wrap_to_period
 from .tables import FactorTables
 
+# Up to this many entries, checks of states run on Python floats (see count_outside).
+SCALAR_ENTRIES = 32
+
 
 def outside_domain(X, domain, periodic, slack=0.0):
     """Rows of ``X`` with a non-periodic variable outside its interval.
@@ -45,7 +48,7 @@ def outside_domain(X, domain, periodic, slack=0.0):
 def count_outside(X, domain, periodic, slack=0.0):
     """Number of rows of ``X`` that :func:`outside_domain` finds outside.
 
-    A few states (one prediction, one stage of a step) are compared as
+    Same parameters as :func:`outside_domain`. A few states (one prediction, one stage of a step) are compared as
     Python floats: numpy's fixed cost per call is several times that of
     the comparisons.
     """
@@ -56,10 +59,6 @@ def count_outside(X, domain, periodic, slack=0.0):
         any(value < low or value > high for value, (low, high) in zip(row, pairs))
         for row in X.tolist()
     )
-
-
-# Up to this many entries, checks of states run on Python floats (see count_outside).
-SCALAR_ENTRIES = 32
 
 
 def _bounds_of(domain, periodic, slack):
@@ -73,7 +72,11 @@ def _bounds_of(domain, periodic, slack):
 
 @functools.lru_cache(maxsize=64)
 def _bounds(domain, n_states, periodic, slack):
-    """Bounds of :func:`outside_domain` (arrays, and (low, high) floats per variable), from the bytes of its arguments."""
+    """Bounds of :func:`outside_domain`, from the bytes of its arguments.
+
+    Returns the lower and upper bounds as arrays, and as ``(low, high)``
+    floats per variable (for :func:`count_outside`).
+    """
     domain = np.frombuffer(domain, dtype=float).reshape(n_states, 2)
     periodic = np.frombuffer(periodic, dtype=bool)
     margin = slack * (domain[:, 1] - domain[:, 0])
