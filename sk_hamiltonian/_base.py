@@ -1,7 +1,6 @@
 """What the two regressors share: input handling, model space, simulation and scoring."""
 
 import copy
-import math
 import operator
 import warnings
 from numbers import Integral, Real
@@ -28,7 +27,7 @@ from ._solvers import choose_solver, warn_if_ill_conditioned
 from ._streaming import PartialFitState
 from ._space import ModelSpace, index_set
 from ._space.readable import ReadableBasis
-from ._space.space import SCALAR_ENTRIES, count_outside
+from ._space.space import all_finite, count_outside
 from ._trajectories import unpack_derivatives
 from .exceptions import DomainWarning
 
@@ -65,13 +64,6 @@ def check_time(t):
     if np.any(np.diff(t) <= 0):
         raise ValueError("t must be strictly increasing.")
     return t
-
-
-def _all_finite(X):
-    """``np.isfinite(X).all()``, on Python floats for a few entries (see ``count_outside``)."""
-    if X.size > SCALAR_ENTRIES:
-        return bool(np.isfinite(X).all())
-    return all(map(math.isfinite, X.ravel().tolist()))
 
 
 def _is_dask(X):
@@ -665,7 +657,7 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
         if (
             type(X) is np.ndarray and X.dtype == np.float64 and X.ndim == 2
             and X.shape[0] > 0 and X.shape[1] == self.n_features_in_
-            and not hasattr(self, "feature_names_in_") and _all_finite(X)
+            and not hasattr(self, "feature_names_in_") and all_finite(X)
         ):
             return X
         return validate_data(self, X, reset=False)

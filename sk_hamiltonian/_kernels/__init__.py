@@ -8,8 +8,8 @@ path runs exactly as before.
 - :func:`contract`: value, gradient and Hessian of ``sum_j coef[j] phi_j``
   at many states (what :class:`~sk_hamiltonian._space.ModelSpace`'s
   ``value_dot``, ``gradient_dot`` and ``hessian_dot`` return);
-- :func:`field`: a model's vector field at many states (what ``predict``
-  returns), the Hamiltonian structure applied in the same compiled pass;
+- :func:`field`: a Hamiltonian's vector field at many states (what
+  ``predict`` returns), the structure applied in the same compiled pass;
 - :mod:`.simulate`: whole fixed-step integrations as compiled loops;
 - :mod:`.threads`: BLAS threads chosen by problem size.
 """
@@ -138,9 +138,7 @@ def contract(space, X, coef, order):
     grad : ndarray of shape (n_samples, n_states, K) or None (order 0)
     hess : ndarray of shape (n_samples, n_states, n_states, K) or None (order < 2)
     """
-    _jit = _compiled()
-    tree, bound, flat = bound_kernels(space, coef)
-    X = np.ascontiguousarray(X, dtype=float)
+    _jit, tree, bound, flat, X = _prepared(space, X, coef)
     n, m = X.shape
     K = bound.shape[1]
     value = np.empty((n, K))
@@ -155,7 +153,10 @@ def contract(space, X, coef, order):
 
 
 def field(space, X, coef, damping=None):
-    """The vector field of a model at the rows of ``X``, in one compiled pass per slice of rows.
+    """The vector field ``(J^{-1} - Gamma) grad H`` of a Hamiltonian at the rows of ``X``.
+
+    The structure and damping are applied in the compiled pass that
+    contracts the gradient.
 
     Parameters
     ----------
@@ -163,33 +164,30 @@ def field(space, X, coef, damping=None):
         The basis.
     X : ndarray of shape (n_samples, n_states)
         States.
-    coef : ndarray of shape (n_terms,) or (n_terms, n_states)
-        A Hamiltonian's coefficients (the field is ``(J^{-1} - Gamma) grad
-        H``), or a vector field's (``f_c = sum_j coef[j, c] phi_j``).
+    coef : ndarray of shape (n_terms,)
+        Coefficients of ``H = sum_j coef[j] phi_j``.
     damping : ndarray of shape (n_states // 2,), default=None
-        ``Gamma``'s diagonal, for a Hamiltonian.
+        ``Gamma``'s diagonal.
 
     Returns
     -------
     dXdt : ndarray of shape (n_samples, n_states)
     """
-    _jit = _compiled()
-    tree, bound, flat = bound_kernels(space, coef)
-    X = np.ascontiguousarray(X, dtype=float)
+    _jit, tree, bound, flat, X = _prepared(space, X, coef)
     n, m = X.shape
-    kind = 0 if np.ndim(coef) == 1 else 1
     gamma = np.zeros(m // 2) if damping is None else np.ascontiguousarray(damping, dtype=float)
     out = np.empty((n, m))
-    K = bound.shape[1]
-    if n < 2 * PARALLEL_ROWS:  # the usual one slice, without building a closure
-        _jit.fields(kind, X, tree, bound, flat, gamma, out, *_work(tree, K, m))
-        return out
 
     def part(rows):
-        _jit.fields(kind, X[rows], tree, bound, flat, gamma, out[rows], *_work(tree, K, m))
+        _jit.fields(0, X[rows], tree, bound, flat, gamma, out[rows], *_work(tree, 1, m))
 
     in_threads(part, n, PARALLEL_ROWS)
     return out
+
+
+def _prepared(space, X, coef):
+    """The compiled kernels, ``bound_kernels(space, coef)`` and ``X`` as they take it (C-ordered floats)."""
+    return (_compiled(), *bound_kernels(space, coef), np.ascontiguousarray(X, dtype=float))
 
 
 def _work(tree, K, m):

@@ -8,6 +8,7 @@ over a given set of multi-indices.
 """
 
 import functools
+import math
 
 import numpy as np
 
@@ -48,9 +49,9 @@ def outside_domain(X, domain, periodic, slack=0.0):
 def count_outside(X, domain, periodic, slack=0.0):
     """Number of rows of ``X`` that :func:`outside_domain` finds outside.
 
-    Same parameters as :func:`outside_domain`. A few states (one prediction, one stage of a step) are compared as
-    Python floats: numpy's fixed cost per call is several times that of
-    the comparisons.
+    Same parameters as :func:`outside_domain`. A few states (one
+    prediction, one stage of a step) are compared as Python floats: numpy's
+    fixed cost per call is several times that of the comparisons.
     """
     if X.size > SCALAR_ENTRIES:
         return int(np.count_nonzero(outside_domain(X, domain, periodic, slack)))
@@ -59,6 +60,13 @@ def count_outside(X, domain, periodic, slack=0.0):
         any(value < low or value > high for value, (low, high) in zip(row, pairs))
         for row in X.tolist()
     )
+
+
+def all_finite(X):
+    """``np.isfinite(X).all()``, on Python floats for a few entries (as :func:`count_outside`)."""
+    if X.size > SCALAR_ENTRIES:
+        return bool(np.isfinite(X).all())
+    return all(map(math.isfinite, X.ravel().tolist()))
 
 
 def _bounds_of(domain, periodic, slack):
