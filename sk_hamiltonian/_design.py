@@ -26,6 +26,8 @@ import math
 
 import numpy as np
 
+from ._space.fourier import phase_nodes
+from ._space.legendre import gauss_on_unit
 from ._space.workspace import scratch
 
 # Entries of one design block (float64): 8 million is 64 MB, held in the
@@ -120,7 +122,7 @@ class TrainingData:
         """The :class:`Quadrature` of the fit's row groups."""
         if fit_on == "steps":
             x0, dx, dt, weight = self.steps(space)
-            nodes, node_weights = segment_nodes(n_nodes)
+            nodes, node_weights = gauss_on_unit(n_nodes)
             points = [(x0 + s * dx, w) for s, w in zip(nodes, node_weights)]
             return Quadrature(points, dx / dt[:, None], weight)
         if fit_on == "simpson":
@@ -182,12 +184,6 @@ class Quadrature:
             part = self.scale(function(X[rows]), w, rows)
             total = part if total is None else total + part
         return total
-
-
-def segment_nodes(n_nodes):
-    """Gauss-Legendre nodes and weights on ``[0, 1]``."""
-    nodes, weights = np.polynomial.legendre.leggauss(max(1, n_nodes))
-    return 0.5 * (nodes + 1.0), 0.5 * weights
 
 
 def symplectic_targets(y):
@@ -355,15 +351,18 @@ def vector_field_blocks(space, data, fit_on, n_nodes):
         yield At.T, b
 
 
-def quadrature_nodes(space, of_gradient=True, extra_for_periodic=4):
+def quadrature_nodes(space, of_gradient=True, phase=0.0):
     """Gauss-Legendre nodes that average this space's functions exactly along a segment.
 
     A polynomial of degree ``k`` along a segment needs ``ceil((k + 1) / 2)``
     nodes: ``ceil(n / 2)`` for the gradient of a degree-``n`` basis, ``ceil((n
     + 1) / 2)`` for the basis itself. Trigonometric factors are not
-    polynomials along a segment; a few more nodes bring the quadrature error
-    to round-off for the short segments of sampled data and integration steps.
+    polynomials along a segment; they add the nodes that average them to
+    round-off (:func:`~sk_hamiltonian._space.fourier.phase_nodes`): 4 for
+    the short segments of sampled data (``phase`` up to 0.145), more for
+    segments along which they turn through a larger ``phase`` (radians, see
+    ``ModelSpace.phase_rates``).
     """
     k = space.degree - 1 if of_gradient else space.degree
     n = max(1, math.ceil((k + 1) / 2))
-    return n + (extra_for_periodic if space.periodic.any() else 0)
+    return n + (phase_nodes(phase) if space.periodic.any() else 0)

@@ -386,6 +386,7 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
         return Dynamics(
             self._vector_field, jacobian=self._jacobian,
             damping=self._damping(), n_nodes=quadrature_nodes(self._eval_space),
+            phase_rates=self._eval_space.phase_rates if self.periodic_.any() else None,
             wrap=self._space.wrap if self.periodic_.any() else None, **split,
             compiled=KernelModel(
                 "gradient", self._eval_space, self._eval_coef, self._damping(), self._split

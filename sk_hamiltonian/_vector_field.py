@@ -177,6 +177,7 @@ class VectorFieldRegressor(BaseTrajectoryRegressor):
         return Dynamics(
             self._vector_field, jacobian=self._jacobian,
             n_nodes=quadrature_nodes(self._eval_space, of_gradient=False),
+            phase_rates=self._eval_space.phase_rates if self.periodic_.any() else None,
             wrap=self._space.wrap if self.periodic_.any() else None,
             compiled=KernelModel("value", self._eval_space, self._eval_coef),
         )

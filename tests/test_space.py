@@ -8,9 +8,16 @@ import pytest
 from numpy.polynomial import legendre
 
 from sk_hamiltonian._space import ModelSpace, index_set
-from sk_hamiltonian._space.fourier import fourier_tables, wrap_to_period
+from sk_hamiltonian._space.fourier import (
+    MAX_SEGMENT_NODES,
+    MIN_SEGMENT_NODES,
+    fourier_tables,
+    phase_nodes,
+    segment_phase_limits,
+    wrap_to_period,
+)
 from sk_hamiltonian._space.gram import corollary_samples, gradient_gram, stability_constant
-from sk_hamiltonian._space.legendre import interval_to_window, legendre_tables
+from sk_hamiltonian._space.legendre import gauss_on_unit, interval_to_window, legendre_tables
 
 DOMAIN = np.array([[-2.0, 2.0], [-1.0, 2.0], [-2.0, 1.0], [-1.0, 1.0]])
 
@@ -124,6 +131,29 @@ def test_fourier_tables_values_and_derivatives():
     assert np.allclose(tables[1][:, 0, 2::2], k * np.cos(k * t), atol=1e-12)
     assert np.allclose(tables[2][:, 0, 1::2], -(k**2) * np.cos(k * t), atol=1e-11)
     assert np.allclose(tables[1][:, 0, 0], 0.0) and np.allclose(tables[2][:, 0, 0], 0.0)
+
+
+def gauss_error(n_nodes, phase):
+    """Error of the rule in averaging ``exp(i phase xi)`` over ``[0, 1]``."""
+    nodes, weights = gauss_on_unit(n_nodes)
+    # About the midpoint the odd part averages to zero on both sides, and the
+    # even part's exact average sin(phase / 2) / (phase / 2) has no cancellation.
+    t = phase * (nodes - 0.5)
+    return abs(weights @ np.cos(t) - np.sinc(phase / (2 * np.pi)))
+
+
+def test_phase_limits_are_where_each_rule_reaches_round_off():
+    limits = segment_phase_limits()
+    assert limits.shape == (MAX_SEGMENT_NODES + 1,) and np.all(np.diff(limits) > 0)
+    for n_nodes in range(MIN_SEGMENT_NODES, 25):
+        # Within its limit a rule is at round-off: 2**-53 plus the rounding
+        # of its own n_nodes-term sum.
+        assert gauss_error(n_nodes, limits[n_nodes]) <= 2.0**-53 + n_nodes * 2.0**-52
+        # The bound is tight: at twice the limit the error is far above round-off.
+        assert gauss_error(n_nodes, 2 * limits[n_nodes]) > 1e-14
+    assert phase_nodes(0.0) == MIN_SEGMENT_NODES
+    assert phase_nodes(limits[9]) == 9 and phase_nodes(limits[9] * (1 + 1e-12)) == 10
+    assert phase_nodes(1e3) == phase_nodes(np.nan) == MAX_SEGMENT_NODES
 
 
 def test_window_and_period_maps():

@@ -2,6 +2,8 @@
 
 import numpy as np
 
+from .._space.fourier import phase_nodes
+from .._space.legendre import gauss_on_unit
 from .base import FixedStepIntegrator, apply_inverse_symplectic
 
 
@@ -30,8 +32,11 @@ class AveragedVectorField(FixedStepIntegrator):
     gamma_i (dq_i/dt)**2``, since ``g_p = (q1 - q0) / h``. Both hold to
     round-off when the average is exact: for a polynomial ``H`` of degree
     ``n`` the integrand has degree ``n - 1`` in ``xi`` and ``ceil(n / 2)``
-    Gauss-Legendre nodes suffice (the model says how many it needs, more for
-    trigonometric terms). For a model without a Hamiltonian the map is the
+    Gauss-Legendre nodes suffice (the model says how many it needs). A model
+    with trigonometric terms needs more, the more the further a step turns
+    them: each step takes the nodes that average them to round-off along its
+    own segment (``Dynamics.phase_rates``), up to a phase of 144 radians per
+    step. For a model without a Hamiltonian the map is the
     same, without a conservation law; it is the map a fit on observed steps
     learns. The implicit equation is solved by simplified Newton iterations
     with the matrix ``I - (h / 2) Df(y0)``, from the linearly implicit
@@ -55,9 +60,7 @@ class AveragedVectorField(FixedStepIntegrator):
         self.rtol = rtol
         self.max_iter = max_iter
         super().__init__(dynamics)
-        nodes, weights = np.polynomial.legendre.leggauss(max(1, dynamics.n_nodes))
-        self.nodes = 0.5 * (nodes + 1.0)
-        self.weights = 0.5 * weights
+        self.nodes, self.weights = gauss_on_unit(max(1, dynamics.n_nodes))
 
     def _check(self, dynamics):
         if dynamics.jacobian is None:
@@ -66,12 +69,38 @@ class AveragedVectorField(FixedStepIntegrator):
                 "this model does not provide; use method='rk4'."
             )
 
+    def rule(self, phase=0.0):
+        """Gauss-Legendre nodes and weights on ``[0, 1]`` for a segment of this phase.
+
+        Parameters
+        ----------
+        phase : float, default=0.0
+            Largest phase along the segment of the model's trigonometric
+            factors (radians); ignored for a polynomial model.
+
+        Returns
+        -------
+        nodes, weights : ndarray of shape (n_nodes,)
+            :attr:`nodes` and :attr:`weights` for short segments, with the
+            extra nodes a longer phase needs.
+        """
+        if self.dynamics.phase_rates is None:
+            return self.nodes, self.weights
+        extra = phase_nodes(phase) - phase_nodes(0.0)
+        if extra == 0:
+            return self.nodes, self.weights
+        return gauss_on_unit(self.nodes.size + extra)
+
     def _averaged_field(self, y0, y1):
         n = y0.shape[0]
         diff = y1 - y0
-        points = y0[None] + self.nodes[:, None, None] * diff[None]
+        phase = 0.0
+        if self.dynamics.phase_rates is not None:
+            phase = (np.abs(diff) @ self.dynamics.phase_rates).max(initial=0.0)
+        nodes, weights = self.rule(phase)
+        points = y0[None] + nodes[:, None, None] * diff[None]
         values = self.fun(points.reshape(-1, y0.shape[1])).reshape(points.shape)
-        return np.tensordot(self.weights, values, axes=1).reshape(n, -1)
+        return np.tensordot(weights, values, axes=1).reshape(n, -1)
 
     def _step_impl(self, y, h):
         n_features = y.shape[1]
@@ -108,3 +137,4 @@ class AveragedVectorField(FixedStepIntegrator):
                 break
         y1[~converged] = np.nan
         return y1
+

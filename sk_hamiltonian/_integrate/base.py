@@ -46,6 +46,12 @@ class Dynamics:
     n_nodes : int, default=1
         Gauss-Legendre nodes that make the average of ``f`` over a segment
         exact (or accurate to round-off), for the AVF method.
+    phase_rates : ndarray of shape (n_features,), default=None
+        For a model with trigonometric factors: per variable, the radians
+        per unit its fastest factor turns (see ``ModelSpace.phase_rates``).
+        ``n_nodes`` then holds for short segments, and the AVF method adds
+        nodes to a step whose segment turns its factors further. None: the
+        field is a polynomial.
     wrap : callable, default=None
         Maps states to their canonical representatives (periodic variables
         into their period); applied between output times.
@@ -57,7 +63,7 @@ class Dynamics:
 
     def __init__(
         self, field, *, jacobian=None, damping=None, kinetic_gradient=None,
-        potential_gradient=None, n_nodes=1, wrap=None, compiled=None,
+        potential_gradient=None, n_nodes=1, phase_rates=None, wrap=None, compiled=None,
     ):
         self.field = field
         self.jacobian = jacobian
@@ -65,6 +71,7 @@ class Dynamics:
         self.kinetic_gradient = kinetic_gradient
         self.potential_gradient = potential_gradient
         self.n_nodes = n_nodes
+        self.phase_rates = None if phase_rates is None else np.asarray(phase_rates, dtype=float)
         self.wrap = wrap
         self.compiled = compiled
 

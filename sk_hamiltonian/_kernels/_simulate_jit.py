@@ -108,8 +108,16 @@ def _rk4(kind, tree, C, flat, gamma, y, h, T, cur, nxt, pad, k1, k2, k3, k4, tmp
 
 
 @njit(cache=True, nogil=True)
-def _avf(kind, tree, C, flat, gamma, y, h, nodes, weights, rtol, max_iter, T, cur, nxt, pad, J, M, f, y1, avg, point):
-    """One AVF step of ``y`` in place; NaN where Newton does not converge (see AveragedVectorField)."""
+def _avf(kind, tree, C, flat, gamma, y, h, rules, rtol, max_iter, T, cur, nxt, pad, J, M, f, y1, avg, point):
+    """One AVF step of ``y`` in place; NaN where Newton does not converge (see AveragedVectorField).
+
+    ``rules`` is ``(nodes, weights, phase_limits, phase_rates)``: row ``e`` of
+    ``nodes`` and ``weights`` is the rule with ``e`` nodes more than row 0
+    (padded), which a segment turning trigonometric factors through a phase
+    up to ``phase_limits[e]`` takes (see :func:`simulate.avf_rules`).
+    """
+    nodes, weights, phase_limits, phase_rates = rules
+    n_first = nodes.shape[1] - nodes.shape[0] + 1
     m = y.shape[0]
     _jacobian(kind, tree, C, flat, gamma, y, T, cur, nxt, pad, J)
     for i in range(m):
@@ -128,14 +136,20 @@ def _avf(kind, tree, C, flat, gamma, y, h, nodes, weights, rtol, max_iter, T, cu
     previous = np.inf
     converged = False
     for _ in range(max_iter):
+        phase = 0.0
         for i in range(m):
             avg[i] = 0.0
-        for q in range(nodes.shape[0]):
+            phase += phase_rates[i] * abs(y1[i] - y[i])
+        # As fourier.phase_nodes: the first rule that covers the phase, else the last.
+        e = 0
+        while e < phase_limits.shape[0] - 1 and not phase <= phase_limits[e]:
+            e += 1
+        for q in range(n_first + e):
             for i in range(m):
-                point[i] = y[i] + nodes[q] * (y1[i] - y[i])
+                point[i] = y[i] + nodes[e, q] * (y1[i] - y[i])
             field_at(kind, tree, C, flat, gamma, point, T, cur, nxt, pad, f)
             for i in range(m):
-                avg[i] += weights[q] * f[i]
+                avg[i] += weights[e, q] * f[i]
         for i in range(m):
             point[i] = y1[i] - y[i] - h * avg[i]  # the residual
         size = 0.0
@@ -183,7 +197,7 @@ def _wrap(y, periodic, low, high):
 
 
 @njit(cache=True, nogil=True)
-def _run(method, kind, tree, C, flat, tree2, C2, flat2, gamma, lf_weights, nodes, weights, rtol, max_iter,
+def _run(method, kind, tree, C, flat, tree2, C2, flat2, gamma, lf_weights, rules, rtol, max_iter,
          periodic, low, high, y0, n_sub, h, out, failed_at, first, stop):
     """Integrate the initial states ``first .. stop - 1`` (see :func:`integrate`)."""
     m = y0.shape[1]
@@ -212,7 +226,7 @@ def _run(method, kind, tree, C, flat, tree2, C2, flat2, gamma, lf_weights, nodes
                 if method == 0:
                     _rk4(kind, tree, C, flat, gamma, y, h[k], T, cur, nxt, pad, k1, k2, k3, k4, tmp)
                 elif method == 1:
-                    _avf(kind, tree, C, flat, gamma, y, h[k], nodes, weights, rtol, max_iter,
+                    _avf(kind, tree, C, flat, gamma, y, h[k], rules, rtol, max_iter,
                          T, cur, nxt, pad, J, M, k1, k2, k3, k4)
                 else:
                     _leapfrog(tree, C, flat, tree2, C2, flat2, y, h[k], lf_weights, T, cur, nxt, pad,
@@ -232,11 +246,11 @@ def _run(method, kind, tree, C, flat, tree2, C2, flat2, gamma, lf_weights, nodes
 
 
 @njit(cache=True, nogil=True)
-def integrate(method, kind, tree, C, flat, tree2, C2, flat2, gamma, lf_weights, nodes, weights, rtol,
+def integrate(method, kind, tree, C, flat, tree2, C2, flat2, gamma, lf_weights, rules, rtol,
               max_iter, periodic, low, high, y0, n_sub, h, out, failed_at):
     """Integrate every initial state of ``y0`` into ``out`` (n_times, n, m).
 
     Releases the GIL: callers run chunks of initial states in threads.
     """
-    _run(method, kind, tree, C, flat, tree2, C2, flat2, gamma, lf_weights, nodes, weights, rtol, max_iter,
+    _run(method, kind, tree, C, flat, tree2, C2, flat2, gamma, lf_weights, rules, rtol, max_iter,
          periodic, low, high, y0, n_sub, h, out, failed_at, 0, y0.shape[0])

@@ -11,6 +11,7 @@ import math
 
 import numpy as np
 
+from .._space.fourier import MIN_SEGMENT_NODES, PHASE_LIMITS
 from . import PARALLEL_ROWS, bound_kernels, in_threads
 
 METHOD_CODES = {"rk4": 0, "avf": 1, "leapfrog": 2, "yoshida4": 2}
@@ -77,10 +78,10 @@ def integrate_compiled(integrator, y0, t, max_step):
     else:
         tree2, C2, flat2, lf_weights = tree, C, flat, np.zeros(0)
     if code == 1:
-        nodes, weights = integrator.nodes, integrator.weights
+        rules = avf_rules(integrator, m)
         rtol, max_iter = float(integrator.rtol), int(integrator.max_iter)
     else:
-        nodes = weights = np.zeros(0)
+        rules = (np.zeros((1, 0)), np.zeros((1, 0)), np.zeros(1), np.zeros(m))
         rtol, max_iter = 0.0, 0
     gamma = np.zeros(m // 2) if model.damping is None else np.asarray(model.damping, dtype=float)
     wrap = integrator.dynamics.wrap is not None
@@ -94,7 +95,7 @@ def integrate_compiled(integrator, y0, t, max_step):
         out = np.empty((n_times, rows.stop - rows.start, m))
         failed_at = np.empty(rows.stop - rows.start, dtype=np.int64)
         _simulate_jit.integrate(
-            code, kind, tree, C, flat, tree2, C2, flat2, gamma, lf_weights, nodes, weights, rtol, max_iter,
+            code, kind, tree, C, flat, tree2, C2, flat2, gamma, lf_weights, rules, rtol, max_iter,
             periodic, low, high, np.ascontiguousarray(y0[rows]), n_sub, h, out, failed_at,
         )
         parts[rows.start] = (out, failed_at)
@@ -108,3 +109,25 @@ def integrate_compiled(integrator, y0, t, max_step):
     out = np.concatenate([parts[a][0] for a in starts], axis=1)
     failed_at = np.concatenate([parts[a][1] for a in starts])
     return out, failed_at.astype(np.intp)
+
+
+def avf_rules(integrator, n_features):
+    """Every quadrature rule a compiled AVF step may take, as arrays.
+
+    Returns ``(nodes, weights, phase_limits, phase_rates)``. Row ``e`` of
+    ``nodes`` and ``weights`` (zero-padded) is
+    ``integrator.rule(phase)`` for the phases up to ``phase_limits[e]``:
+    ``e`` nodes more than the rule of short segments. ``phase_rates`` gives a
+    step's phase, ``phase_rates @ |y1 - y0|``. A polynomial model has one
+    rule and zero rates.
+    """
+    nodes, weights = integrator.nodes, integrator.weights
+    rates = integrator.dynamics.phase_rates
+    if rates is None:
+        return nodes[None].copy(), weights[None].copy(), np.zeros(1), np.zeros(n_features)
+    phase_limits = PHASE_LIMITS[MIN_SEGMENT_NODES:]
+    n_first, n_rules = nodes.size, phase_limits.size
+    table = np.zeros((2, n_rules, n_first + n_rules - 1))
+    for e, phase in enumerate(phase_limits):
+        table[:, e, : n_first + e] = integrator.rule(phase)
+    return table[0], table[1], phase_limits, np.array(rates, dtype=float)

@@ -5,7 +5,8 @@ Plain functions in the spirit of ``numpy.polynomial.legendre``: a variable
 ``[-1, 1]`` (:func:`interval_to_window`), where :func:`legendre_tables`
 evaluates ``P_0 .. P_n`` and their derivatives. :func:`legendre_moments` gives
 the closed-form inner products under the uniform measure that the Gram matrix
-of the tensor basis is built from.
+of the tensor basis is built from, and :func:`gauss_on_unit` the quadrature
+rule that averages along a segment.
 """
 
 from functools import lru_cache
@@ -107,3 +108,24 @@ def legendre_moments(degree):
     low = np.minimum.outer(a, a)
     slopes = np.where((np.add.outer(a, a) % 2) == 0, low * (low + 1) / 2.0, 0.0)
     return values, slopes
+
+
+@lru_cache(maxsize=None)
+def gauss_on_unit(n_nodes):
+    """Gauss-Legendre nodes and weights on ``[0, 1]`` (cached, read-only).
+
+    Parameters
+    ----------
+    n_nodes : int
+        Number of nodes; the rule is exact for polynomials of degree up to
+        ``2 n_nodes - 1`` (at least one node).
+
+    Returns
+    -------
+    nodes, weights : ndarray of shape (max(1, n_nodes),)
+        The weights sum to 1: the rule averages over the segment.
+    """
+    nodes, weights = np.polynomial.legendre.leggauss(max(1, n_nodes))
+    nodes, weights = 0.5 * (nodes + 1.0), 0.5 * weights
+    nodes.flags.writeable = weights.flags.writeable = False
+    return nodes, weights

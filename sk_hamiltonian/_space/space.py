@@ -178,6 +178,19 @@ class ModelSpace:
         """Largest total degree of a basis function."""
         return int(np.abs(self.powers).sum(axis=1).max(initial=0))
 
+    @property
+    def phase_rates(self):
+        """Radians per unit of each variable turned by the fastest factor.
+
+        ``2 pi K / P`` for a periodic variable of period ``P`` in a space of
+        highest frequency ``K``, 0 for the others: along a segment from ``x0``
+        to ``x1`` no trigonometric factor turns through more than
+        ``phase_rates @ |x1 - x0|`` (what the quadrature of the segment needs,
+        :func:`~sk_hamiltonian._design.quadrature_nodes`).
+        """
+        period = self.domain[:, 1] - self.domain[:, 0]
+        return np.where(self.periodic, 2.0 * np.pi * self.fourier_degree / period, 0.0)
+
     def wrap(self, X):
         """Wrap the periodic variables of ``X`` into their period (a copy)."""
         X = np.array(X, dtype=float)
