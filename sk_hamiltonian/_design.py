@@ -351,18 +351,18 @@ def vector_field_blocks(space, data, fit_on, n_nodes):
         yield At.T, b
 
 
-def quadrature_nodes(space, of_gradient=True, phase=0.0):
+def quadrature_nodes(space, of_gradient=True):
     """Gauss-Legendre nodes that average this space's functions exactly along a segment.
 
     A polynomial of degree ``k`` along a segment needs ``ceil((k + 1) / 2)``
     nodes: ``ceil(n / 2)`` for the gradient of a degree-``n`` basis, ``ceil((n
     + 1) / 2)`` for the basis itself. Trigonometric factors are not
     polynomials along a segment; they add the nodes that average them to
-    round-off (:func:`~sk_hamiltonian._space.fourier.phase_nodes`): 4 for
-    the short segments of sampled data (``phase`` up to 0.145), more for
-    segments along which they turn through a larger ``phase`` (radians, see
-    ``ModelSpace.phase_rates``).
+    round-off along a short segment (a phase up to 0.145 radians, see
+    :func:`~sk_hamiltonian._space.fourier.phase_nodes`), which is what
+    sampled data have. The AVF method adds more to a step that turns them
+    further.
     """
     k = space.degree - 1 if of_gradient else space.degree
     n = max(1, math.ceil((k + 1) / 2))
-    return n + (phase_nodes(phase) if space.periodic.any() else 0)
+    return n + (phase_nodes(0.0) if space.periodic.any() else 0)
