@@ -454,6 +454,13 @@ def _rms_finished(e):
     return 1.0 - float((1.0 - share) + share * np.sqrt(np.mean(c[done] ** 2)))
 
 
+def _trimmed_mean(x, share):
+    """Mean of ``x`` without its ``share`` smallest and ``share`` largest values."""
+    x = np.sort(x)
+    cut = int(share * x.size)
+    return float(np.mean(x[cut : x.size - cut]))
+
+
 # Raw per-trajectory quantities of every scored fold, for aggregations
 # computed after the run (``--dump``); off unless a list is put here.
 RECORD = None
@@ -488,6 +495,7 @@ def aggregate(e):
         "RMS of excess": 1.0 - float(np.sqrt(np.mean(np.maximum(c**2 - floor**2, 0.0)))),
         "mean square excess": 1.0 - float(np.mean(c**2 - floor**2)),
         "median - floor": 1.0 - float(np.median(c - floor)),
+        "trimmed (10 %) - floor": 1.0 - _trimmed_mean(c - floor, 0.1),
         "mean of excess/floor": 1.0 - float(np.mean(np.minimum(
             np.maximum(c - floor, 0.0) / np.maximum(floor, 1e-12), 1e3))),
         "energy": _capped(e["energy"]),
