@@ -36,12 +36,12 @@ class AveragedVectorField(FixedStepIntegrator):
     with trigonometric terms needs more, the more the further a step turns
     them: each step takes the nodes that average them to round-off along its
     own segment (``Dynamics.phase_rates``), up to a phase of 144 radians per
-    step. For a model without a Hamiltonian the map is the
-    same, without a conservation law; it is the map a fit on observed steps
-    learns. The implicit equation is solved by simplified Newton iterations
-    with the matrix ``I - (h / 2) Df(y0)``, from the linearly implicit
-    predictor ``y0 + h (I - (h / 2) Df(y0))^{-1} f(y0)``, until the update
-    is at round-off.
+    step. For a model without a Hamiltonian the map is the same, without a
+    conservation law; it is the map a fit on observed steps learns. The
+    implicit equation is solved by simplified Newton iterations with the
+    matrix ``I - (h / 2) Df(y0)``, from the linearly implicit predictor
+    ``y0 + h (I - (h / 2) Df(y0))^{-1} f(y0)``, until the update is at
+    round-off.
 
     Parameters
     ----------
