@@ -142,7 +142,7 @@ def segment_phase_limits(max_nodes=MAX_SEGMENT_NODES):
     frequency ``k`` turns through the phase ``w = k |theta1 - theta0|``. The
     ``m``-node rule on ``[0, 1]`` averages ``exp(i w xi)`` with an error of at
     most ``w**(2m) (m!)**4 / ((2m + 1) ((2m)!)**3)`` (the classical remainder,
-    within a factor 1.2 of the true error for the phases that matter here).
+    within a factor 2 of the true error wherever that error is below 1e-2).
 
     Parameters
     ----------
