@@ -36,6 +36,10 @@ BLOCK_ENTRIES = 10_000_000
 # Relative slack for "outside the domain", so that training points on the
 # bounding box do not warn after round-off.
 DOMAIN_SLACK = 1e-9
+# Thinnest interval of a domain: the map onto the basis window scales
+# derivatives by 2 / width, Hessians and Gram products by its square, and
+# 1e200 leaves room for both below overflow (1.8e308).
+THINNEST_DOMAIN = 1e-100
 # Default integration step as a fraction of the learned system's time scale
 # 1 / rho (rho: spectral radius of its Jacobian over the training states):
 # the global error of RK4 then stays near (0.1)**4 / 120 per unit of rho * t,
@@ -348,10 +352,7 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
             domain[self.periodic_] = [-np.pi, np.pi]
             width = domain[:, 1] - domain[:, 0]
             scale = np.maximum(np.abs(domain).max(axis=1), np.finfo(float).tiny)
-            # Thinner than round-off of the values, or so thin that the map to
-            # the window overflows.
-            with np.errstate(divide="ignore", over="ignore"):
-                flat = np.flatnonzero((width <= 1e-9 * scale) | ~np.isfinite(2.0 / width))
+            flat = np.flatnonzero(width <= 1e-9 * scale)  # within round-off of the values
             if flat.size:
                 raise ValueError(
                     f"State variable(s) {flat.tolist()} are constant in the training "
@@ -359,16 +360,30 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
                     f"explicit `domain` of shape ({n_states}, 2), or drop the "
                     f"variable(s)."
                 )
+            thin = np.flatnonzero(width < THINNEST_DOMAIN)
+            if thin.size:
+                raise ValueError(
+                    f"State variable(s) {thin.tolist()} span less than {THINNEST_DOMAIN:g} "
+                    f"in the training data ({width[thin].tolist()}): on so thin a "
+                    f"bounding box (the default domain) the basis' derivatives overflow. "
+                    f"Rescale the variable(s) to units in which they span about 1."
+                )
             return domain
         domain = check_array(self.domain, input_name="domain", ensure_2d=False)
-        with np.errstate(divide="ignore", over="ignore", invalid="ignore"):
-            degenerate = domain.shape == (n_states, 2) and not np.all(
-                np.isfinite(2.0 / (domain[:, 1] - domain[:, 0]))
-            )
-        if domain.shape != (n_states, 2) or np.any(domain[:, 1] <= domain[:, 0]) or degenerate:
+        if domain.shape != (n_states, 2) or np.any(domain[:, 1] <= domain[:, 0]):
             raise ValueError(
                 f"domain must have shape ({n_states}, 2) with one (low, high) row "
                 f"per state variable and low < high; got {np.asarray(self.domain).tolist()}."
+            )
+        with np.errstate(over="ignore", invalid="ignore"):
+            width = domain[:, 1] - domain[:, 0]
+        thin = np.flatnonzero(~(width >= THINNEST_DOMAIN) | ~np.isfinite(width))
+        if thin.size:
+            raise ValueError(
+                f"domain rows {thin.tolist()} are {width[thin].tolist()} wide: the "
+                f"basis' derivatives overflow on an interval narrower than "
+                f"{THINNEST_DOMAIN:g} (or one whose width is not finite). Rescale "
+                f"the variable(s) to units in which they span about 1."
             )
         # Frames: _warn_outside, _fit_domain, fit, its _fit_context wrapper.
         self._warn_outside(X, domain, "the training states", stacklevel=5)

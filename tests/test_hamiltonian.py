@@ -256,6 +256,12 @@ def test_domain_warnings():
         (np.random.rand(50, 2), np.zeros((50, 2)), {"domain": [[0, 1]]}, "domain must have shape"),
         (np.random.rand(50, 2), np.zeros((50, 2)), {"domain": [[1, 0], [0, 1]]}, "low < high"),
         (np.column_stack([np.ones(50), np.random.rand(50)]), np.zeros((50, 2)), {}, "constant"),
+        # Not constant to round-off, but the map onto the window would overflow
+        # (2.2e-308 wide: hypothesis found LAPACK errors from the fit before).
+        (np.column_stack([np.r_[2.2e-308, np.zeros(49)], np.random.rand(50)]),
+         np.zeros((50, 2)), {"degree": 2}, "span less than 1e-100.*Rescale"),
+        (np.random.rand(50, 2), np.zeros((50, 2)), {"domain": [[0, 1e-120], [0, 1]]},
+         "domain rows \\[0\\].*narrower than 1e-100"),
         (np.zeros((4, 10, 4)), np.zeros((4, 10, 4)), {}, "y must be None"),
         (np.zeros((4, 10, 4)), None, {}, "DerivativeTransformer first"),
     ],

@@ -60,6 +60,11 @@ def fit_or_refuse(Regressor, X, y, options):
 
 @BOUNDED
 @given(states_and_options())
+# A variable 2.2e-308 wide: the fit met LAPACK errors (an overflowing map onto
+# the window) instead of refusing the domain.
+@example((np.array([[2.2250738585072014e-308, 1.0], [0.0, 0.0], [0.0, 0.0], [0.0, 0.0]]),
+          np.zeros((4, 2)), {"degree": 2, "momentum_degree": None, "separable": False,
+                             "max_interaction": None}))
 def test_fitted_models_give_finite_outputs_of_the_documented_shapes(case):
     X, y, options = case
     for Regressor in (HamiltonianRegressor, VectorFieldRegressor):
