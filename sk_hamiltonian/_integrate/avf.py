@@ -2,7 +2,7 @@
 
 import numpy as np
 
-from .._space.fourier import phase_nodes
+from .._space.fourier import MIN_SEGMENT_NODES, phase_nodes
 from .._space.legendre import gauss_on_unit
 from .base import FixedStepIntegrator, apply_inverse_symplectic
 
@@ -86,7 +86,8 @@ class AveragedVectorField(FixedStepIntegrator):
         """
         if self.dynamics.phase_rates is None:
             return self.nodes, self.weights
-        extra = phase_nodes(phase) - phase_nodes(0.0)
+        # phase_nodes(0.0) is the minimum, already counted in n_nodes.
+        extra = phase_nodes(phase) - MIN_SEGMENT_NODES
         if extra == 0:
             return self.nodes, self.weights
         return gauss_on_unit(self.nodes.size + extra)
