@@ -18,8 +18,9 @@ J = 2 intervals per trajectory):
 - simulation from u0*: 10 000 RK4 steps, and the cost of one AVF step in RK4
   steps;
 - fits (M = 8 000): time of ``fit`` against one ``A.T @ A`` at n = 10 and
-  n = 14, for the default solver ("normal" at these sizes) and, at n = 10,
-  the conjugate-gradient solver; the cost of one CG iteration against the
+  n = 14, for the default solver ("normal" at these sizes), at n = 14 the
+  sketch-preconditioned solver and, at n = 10, the conjugate-gradient
+  solver with its closed-form preconditioner; the cost of one CG iteration against the
   Gram matrix per state at n = 14 and n = 18 (how many iterations CG may take
   to break even), and its iteration count at n = 10;
 - scaling: fit time against the number of samples and against the number of
@@ -30,7 +31,9 @@ J = 2 intervals per trajectory):
 of issue 19 are ratios to ``A.T @ A`` on both cores of a 2-core machine);
 ``--quick`` skips the compile group and the agreement rows.
 ``--paper-n18`` instead runs the paper's largest case alone (n = 18,
-M = 60 000) with all cores and reports its time and peak memory.
+M = 60 000) with all cores and reports its time and peak memory, for each
+solver of ``--n18-solvers`` (default ``auto``; e.g. ``auto normal`` side by
+side, with the agreement of their coefficients).
 
 Outputs, in ``--output`` (default ``benchmarks/results/``): ``scale.csv``
 (one row per measurement, with its target), ``scale_fit.csv`` (the scaling
@@ -103,6 +106,10 @@ def parse_args(argv=None):
                              "two-thread A.T @ A on 2 cores); default one thread")
     parser.add_argument("--paper-n18", action="store_true",
                         help="only the paper's n = 18, M = 60 000 fit, with all cores")
+    parser.add_argument("--n18-solvers", nargs="+", default=["auto"],
+                        choices=["auto", "normal", "sketch", "iterative"],
+                        help="solvers of the n = 18 fit, one after the other in this run "
+                             "(default: auto)")
     parser.add_argument("--groups", nargs="+", default=["evaluation", "compile", "fits", "scaling"],
                         choices=["evaluation", "compile", "fits", "scaling"],
                         help="which groups to run (default: all)")
@@ -312,6 +319,17 @@ def fits(cfg, rows):
         row(rows, "fit", f"fit n={degree} M={M} ({model.solver_}) / one A.T@A", seconds / gram,
             "ratio", target if M >= 8000 else None,
             f"fit {seconds:.2f} s, A.T@A {gram:.2f} s, {model.n_terms_} terms, {n_rows} rows")
+    # The sketch-preconditioned solver on the largest case, for the choice of
+    # "auto" (which keeps the normal equations at this size).
+    degree, M = cfg["fit_cases"][-1]
+    Xt = layout(M)
+    start = time.perf_counter()
+    model = fit(Xt, degree, solver="sketch")
+    seconds = time.perf_counter() - start
+    n_rows = Xt.shape[0] * Xt.shape[1] * 4
+    gram = gram_time(n_rows, model.n_terms_, 1)
+    row(rows, "fit", f"fit n={degree} M={M} (sketch) / one A.T@A", seconds / gram, "ratio", None,
+        f"fit {seconds:.2f} s, A.T@A {gram:.2f} s")
     Xt = layout(cfg["cg_M"])
     n_rows = Xt.shape[0] * Xt.shape[1] * 4
     iterations = []
@@ -413,19 +431,35 @@ def plot_scaling(records, output):
     return slopes
 
 
-def paper_n18(output):
+def paper_n18(output, solvers=("auto",)):
     print("# the paper's n = 18, M = 60 000 fit, all cores")
     Xt = layout(60_000)
-    before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
-    start = time.perf_counter()
-    model = fit(Xt, 18, verbose=0)
-    seconds = time.perf_counter() - start
-    peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20  # KiB -> GiB
-    rows = []
-    note = (f"{model.n_terms_} terms, solver {model.solver_}, cond {model.cond_:.3g}; "
-            f"peak RSS before the fit {before / 2**20:.2f} GiB")
-    row(rows, "paper n=18", "fit n=18 M=60000, time", seconds / 60, "minutes", 5.0, note)
-    row(rows, "paper n=18", "fit n=18 M=60000, peak memory (process)", peak, "GiB", 4.0, note)
+    rows, coefs = [], {}
+    for solver in solvers:
+        iterations = []
+        model = HamiltonianRegressor(degree=18, domain=SYSTEM.domain, solver=solver)
+        model._progress = lambda message: (lambda i, r: iterations.append(i))
+        before = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
+        start = time.perf_counter()
+        with warnings.catch_warnings():
+            # Finite differences push ~4 % of the states just outside the paper's box.
+            warnings.simplefilter("ignore")
+            model.fit(Xt)
+        seconds = time.perf_counter() - start
+        # The process's peak so far: for a later solver, the largest of the runs.
+        peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 2**20  # KiB -> GiB
+        coefs[solver] = model.coef_
+        agreement = ""
+        if len(coefs) > 1:
+            first = next(iter(coefs.values()))
+            difference = np.linalg.norm(model.coef_ - first) / np.linalg.norm(first)
+            agreement = f"; coefficients {difference:.1e} relative from {solvers[0]}'s"
+        note = (f"{model.n_terms_} terms, solver {solver} -> {model.solver_}, "
+                f"{len(iterations)} CG iterations, cond {model.cond_:.3g}; peak RSS before "
+                f"the fit {before / 2**20:.2f} GiB{agreement}")
+        label = f"fit n=18 M=60000 ({model.solver_})"
+        row(rows, "paper n=18", f"{label}, time", seconds / 60, "minutes", 5.0, note)
+        row(rows, "paper n=18", f"{label}, peak memory (process)", peak, "GiB", 4.0, note)
     return rows
 
 
@@ -436,12 +470,13 @@ def main(argv=None):
     print("#", info)
     (args.output / ("machine_n18.txt" if args.paper_n18 else "machine.txt")).write_text(info + "\n")
     if args.paper_n18:
-        rows = paper_n18(args.output)
+        rows = paper_n18(args.output, args.n18_solvers)
         name = "scale_n18.csv"
     else:
         cfg = QUICK if args.quick else FULL
         rows = []
-        with threadpool_limits(1):
+        # One BLAS thread unless --all-cores (threadpool_limits(None) limits nothing).
+        with threadpool_limits(None if _ALL_CORES else 1):
             if "evaluation" in args.groups:
                 evaluation(cfg, rows)
             if "compile" in args.groups and numba_available() and not args.quick:

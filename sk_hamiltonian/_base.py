@@ -103,7 +103,7 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
         "couplings": ["array-like", None],
         "fit_on": [StrOptions({"derivatives", "steps", "simpson"})],
         "threshold": [Interval(Real, 0, None, closed="left")],
-        "solver": [StrOptions({"auto", "lstsq", "normal", "iterative"})],
+        "solver": [StrOptions({"auto", "lstsq", "normal", "iterative", "sketch"})],
         "verbose": ["verbose"],
     }
 
@@ -462,8 +462,9 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
             )
             solution = self._fit_support(solve, norms)
         except CGNotConverged:
-            # The preconditioner assumes samples spread over the box; these
-            # are not: fall back to the dense normal equations.
+            # The closed-form preconditioner assumes samples spread over the
+            # box, a sketch a design well enough conditioned for its Gram
+            # matrix; where that fails, fall back to the normal equations.
             self.solver_ = "normal"
             if self.verbose:
                 print(f"[{name}] conjugate gradients did not converge; normal equations")

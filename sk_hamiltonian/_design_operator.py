@@ -6,7 +6,9 @@ computes one variable at a time, and ``A^T r`` is its transpose (reverse mode
 through the same tree). Each costs a few times the number of *prefixes* of the
 index set per sample, mostly in one matrix product, against ``n_terms *
 n_states`` entries per sample for the explicit design: iterative solvers
-apply both dozens of times without ever holding the design.
+apply both dozens of times without ever holding the design. The chunks of
+samples of a pass run on the cores that are idle (each pass is NumPy work
+that releases the GIL).
 
 Rows are grouped per sample as ``(n_outputs, K, n_samples)`` arrays:
 ``n_outputs = n_states`` derivative rows of one target for the Hamiltonian
@@ -20,6 +22,7 @@ freedom (see :mod:`._design`).
 import numpy as np
 
 from ._design import symplectic_targets
+from ._kernels.threads import map_on_idle_cores
 from ._space.contraction import ContractionPlan
 from ._space.fourier import fourier_moments
 from ._space.legendre import legendre_moments
@@ -90,10 +93,13 @@ class DesignOperator:
         coef, gamma = x[: self.space.n_terms], x[self.space.n_terms :]
         C = self.plan.bind(coef)
         out = np.zeros((self.rows.size, x.shape[1], self.n_samples))
-        for part in self._chunks():
+
+        def chunk(part):
             for X, w in self.quadrature.points:
                 results, _ = self.plan.contract(self._tables(part, X), C, self.order)
                 out[:, :, part] += self.quadrature.scale(results[self.rows], w, part)
+
+        map_on_idle_cores(chunk, self._chunks())
         if self.n_dof:
             d = self.n_dof
             out[d:, 0] += gamma[:, 0, None] * self.friction
@@ -106,15 +112,20 @@ class DesignOperator:
         if self.root is not None:
             r = r * self.root
         n_patterns = len(self.plan._step(self.order)[1])
-        out = np.zeros((self.n_columns, r.shape[1]))
-        for part in self._chunks():
+
+        def chunk(part):
             size = min(part.stop, self.n_samples) - part.start
             weights = np.zeros((n_patterns, r.shape[1], size))
+            total = 0.0
             for X, w in self.quadrature.points:
                 weights[self.rows] = self.quadrature.scale(r[:, :, part].copy(), w, part)
-                out[: self.space.n_terms] += self.plan.adjoint(
-                    self._tables(part, X), weights, self.order
-                )
+                total = total + self.plan.adjoint(self._tables(part, X), weights, self.order)
+            return total
+
+        out = np.zeros((self.n_columns, r.shape[1]))
+        # Summed in the order of the chunks, whatever the threads.
+        for total in map_on_idle_cores(chunk, self._chunks()):
+            out[: self.space.n_terms] += total
         if self.n_dof:
             d = self.n_dof
             out[self.space.n_terms :, 0] = np.einsum("is,is->i", r[d:, 0], self.friction)

@@ -107,7 +107,7 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
         Add linear friction, ``dp/dt = -dH~/dq - gamma * dq/dt``, with one
         ``gamma >= 0`` per degree of freedom fitted jointly with ``H~`` by the
         same least squares (the friction term uses the observed ``dq/dt``).
-    solver : {"auto", "lstsq", "normal", "iterative"}, default="auto"
+    solver : {"auto", "lstsq", "normal", "iterative", "sketch"}, default="auto"
         ``"lstsq"`` factorizes the whole (column-equilibrated) design with an
         SVD. ``"normal"`` streams it in blocks into the normal equations
         (memory independent of the number of samples), solves them by
@@ -116,10 +116,15 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
         ``"iterative"`` never forms the normal matrix: conjugate gradients with
         the design applied as an operator, preconditioned by the basis' Gram
         matrix under the uniform measure on the box (fast when the samples
-        cover the box evenly). ``"auto"`` picks ``"lstsq"`` while the design
-        holds at most 5e7 entries, ``"normal"`` beyond, and ``"iterative"``
-        from 10 000 unknowns on (falling back to ``"normal"`` if it does not
-        converge). See :ref:`scaling`.
+        cover the box evenly). ``"sketch"`` runs the same iteration
+        preconditioned by a random sketch of the design (three rows per
+        unknown), which converges in about 50 iterations however the samples
+        are spread; it pays for many unknowns and many samples. ``"auto"``
+        picks ``"lstsq"`` while the design holds at most 5e7 entries,
+        ``"normal"`` beyond, ``"sketch"`` from 6 000 unknowns and 50 rows per
+        unknown on, and ``"iterative"`` from 10 000 unknowns on (falling back
+        to ``"normal"`` if an iteration does not converge). See
+        :ref:`scaling`.
     verbose : int, default=0
         Print the progress of long fits (blocks accumulated, iterations and
         their residual) when positive; silent by default.
@@ -142,8 +147,8 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
         Fitted friction coefficients ``gamma`` (zeros with ``damping=False``).
     cond_ : float
         Condition number of the column-equilibrated least-squares design
-        (estimated with ``solver="iterative"`` and beyond 1 500 unknowns with
-        ``"normal"``).
+        (estimated with ``solver="iterative"`` or ``"sketch"`` and beyond
+        1 500 unknowns with ``"normal"``).
     rank_ : int
         Numerical rank of that design.
     support_ : ndarray of shape (n_basis,) of bool

@@ -51,6 +51,7 @@ from ._solvers import (
     stack_blocks,
     warn_not_converged,
 )
+from ._sketch import DesignSketch
 
 # Cap on the solves of one thresholded fit (each one shrinks the support).
 STLSQ_MAX_ITER = 25
@@ -116,8 +117,8 @@ def column_solver(problem, solver, *, single_solve=False, many_supports=False, f
     ----------
     problem : LeastSquaresProblem
         The design.
-    solver : {"lstsq", "normal", "iterative"}
-        How to solve (see :mod:`._solvers`).
+    solver : {"lstsq", "normal", "iterative", "sketch"}
+        How to solve (see :mod:`._solvers` and :mod:`._sketch`).
     single_solve : bool, default=False
         Whether ``solve`` will be called once only, on all columns: ``"lstsq"``
         may then factorize the design in place instead of a copy.
@@ -129,7 +130,7 @@ def column_solver(problem, solver, *, single_solve=False, many_supports=False, f
         - Q^T b||`` up to a constant, for any column map ``S``) at the cost
         of a square system.
     fall_back : bool, default=False
-        With ``"iterative"``: raise :class:`CGNotConverged` when conjugate
+        With ``"iterative"`` or ``"sketch"``: raise :class:`CGNotConverged` when conjugate
         gradients reach their cap (``solver="auto"`` then uses the normal
         equations), instead of warning.
     progress : callable, default=None
@@ -150,17 +151,22 @@ def column_solver(problem, solver, *, single_solve=False, many_supports=False, f
         ``column_norms(basis=None)``: the norms of the columns of the design,
         or of the design times ``basis`` (one row per column).
     """
-    if solver == "iterative":
+    if solver in ("iterative", "sketch"):
+        gram = None
+        if solver == "sketch":
+            groups = problem.accumulator().groups
+            gram = DesignSketch(problem.n_columns, groups).add_blocks(
+                problem.blocks(grouped=True)).gram()
         operator = problem.operator()
 
         def solve_cg(keep, basis=None):
             coef, cond, rank, converged = solve_iterative(
-                operator, keep, basis=basis, progress=progress
+                operator, keep, basis=basis, progress=progress, gram=gram
             )
             if not converged and fall_back:
                 raise CGNotConverged
             if not converged:
-                warn_not_converged(name)
+                warn_not_converged(name, solver=solver)
             return coef, cond, rank
 
         return solve_cg, problem.column_norms

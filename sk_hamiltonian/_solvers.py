@@ -27,6 +27,11 @@ degree, and reports the condition number of the equilibrated design.
     ``n_terms x n_terms`` matrix plus two operator applications per iteration.
     Its condition number is an estimate (an upper bound, from the
     preconditioner and the iteration's Ritz values).
+``"sketch"``
+    The same iteration, preconditioned by the Gram matrix of a random sketch
+    of the design (:mod:`._sketch`): a few dozen iterations whatever the
+    samples' distribution, for one pass over the design and the sketch's
+    ``n_terms x n_terms`` products.
 
 :func:`choose_solver` resolves ``"auto"`` by size; the choices are measured in
 ``benchmarks/bench_scale.py`` and explained in the documentation (Solvers and
@@ -53,6 +58,13 @@ DENSE_MAX_ENTRIES = 50_000_000
 # n = 18 (7 314), while the closed-form preconditioner needs 100-200
 # iterations, so the Gram matrix wins below about 10 000 unknowns.
 ITERATIVE_MIN_TERMS = 10_000
+# From this many unknowns, and this many rows per unknown, "auto" solves by
+# conjugate gradients preconditioned by a sketch of the design (see
+# :mod:`._sketch`): about 50 iterations, each a pass of the operator, plus
+# the sketch's Gram matrix (SKETCH_ROWS_PER_COLUMN / 2 * n**3 multiply-adds,
+# which the rows make small beside the design's).
+SKETCH_MIN_TERMS = 6_000
+SKETCH_MIN_ROWS_PER_TERM = 50
 # Reciprocal condition number of the equilibrated normal matrix below which
 # Cholesky is not trusted and the eigen pseudo-inverse is used (the design's
 # condition number above 1e7: refinement would then gain little).
@@ -75,7 +87,7 @@ def choose_solver(solver, n_rows, n_terms):
 
     Parameters
     ----------
-    solver : {"auto", "lstsq", "normal", "iterative"}
+    solver : {"auto", "lstsq", "normal", "iterative", "sketch"}
         The requested solver.
     n_rows, n_terms : int
         Shape of the design.
@@ -83,16 +95,22 @@ def choose_solver(solver, n_rows, n_terms):
     Returns
     -------
     solver : str
-        ``"lstsq"`` up to ``DENSE_MAX_ENTRIES`` entries; beyond, ``"normal"``,
-        and ``"iterative"`` from ``ITERATIVE_MIN_TERMS`` unknowns on, where
-        the Gram matrix costs more than the iterations it saves (and more
-        memory than is reasonable).
+        ``"lstsq"`` up to ``DENSE_MAX_ENTRIES`` entries; beyond, ``"normal"``;
+        ``"sketch"`` from ``SKETCH_MIN_TERMS`` unknowns and
+        ``SKETCH_MIN_ROWS_PER_TERM`` rows per unknown on, and ``"iterative"``
+        from ``ITERATIVE_MIN_TERMS`` unknowns on, where the Gram matrix costs
+        more than the iterations it saves (and more memory than is
+        reasonable).
     """
     if solver != "auto":
         return solver
     if n_rows * n_terms <= DENSE_MAX_ENTRIES:
         return "lstsq"
-    return "iterative" if n_terms >= ITERATIVE_MIN_TERMS else "normal"
+    if n_terms >= ITERATIVE_MIN_TERMS:
+        return "iterative"
+    if n_terms >= SKETCH_MIN_TERMS and n_rows >= SKETCH_MIN_ROWS_PER_TERM * n_terms:
+        return "sketch"
+    return "normal"
 
 
 def _column_norms(squared):
@@ -415,8 +433,22 @@ def _ritz_condition(alphas, betas):
     return float(ritz[-1] / ritz[0]) if ritz[0] > 0 else np.inf
 
 
+def _preconditioner_factor(M_eq):
+    """Cholesky factor of an equilibrated preconditioner, shifted if it is singular.
+
+    A sketch's Gram matrix is singular where the design is rank deficient;
+    the shift (round-off relative to its unit diagonal) only slows the
+    iteration along the null directions, which carry no data.
+    """
+    try:
+        return linalg.cho_factor(M_eq, lower=False, check_finite=False)
+    except linalg.LinAlgError:
+        shifted = M_eq + np.finfo(float).eps * M_eq.shape[0] * np.eye(M_eq.shape[0])
+        return linalg.cho_factor(shifted, lower=False, check_finite=False, overwrite_a=True)
+
+
 def solve_iterative(operator, keep=None, rtol=CG_RTOL, max_iter=CG_MAX_ITER, progress=None, *,
-                    basis=None):
+                    basis=None, gram=None):
     """Preconditioned conjugate gradients on the normal equations (CGLS).
 
     Parameters
@@ -436,6 +468,11 @@ def solve_iterative(operator, keep=None, rtol=CG_RTOL, max_iter=CG_MAX_ITER, pro
         Solve for ``u`` with the kept columns' coefficients ``basis @ u``
         (a subspace, e.g. a thresholded support); None: for the kept
         columns' coefficients themselves.
+    gram : ndarray of shape (n_columns, n_columns), default=None
+        An approximation of ``A^T A`` whose Cholesky factor preconditions
+        the iteration, e.g. the Gram matrix of a sketch of the design
+        (:class:`~sk_hamiltonian._sketch.DesignSketch`); None: the
+        operator's closed-form ``gram_estimate()``.
 
     Returns
     -------
@@ -447,19 +484,19 @@ def solve_iterative(operator, keep=None, rtol=CG_RTOL, max_iter=CG_MAX_ITER, pro
         bound: preconditioner times the Ritz estimate of the preconditioned
         operator).
     rank : int
-        Number of unknowns (the closed-form preconditioner is positive
-        definite, so rank is not measured).
+        Number of unknowns (rank is not measured).
     converged : bool
         Whether ``rtol`` was reached within ``max_iter`` iterations.
     """
     n = operator.n_columns
     keep = np.ones(n, dtype=bool) if keep is None else np.asarray(keep, dtype=bool)
-    M = operator.gram_estimate()[np.ix_(keep, keep)]
+    M = (operator.gram_estimate() if gram is None else gram)
+    M = M[np.ix_(keep, keep)] if not np.all(keep) else M
     if basis is not None:
         M = basis.T @ (basis.T @ M).T
     norms = _column_norms(np.diag(M).copy())
     M_eq = M / np.outer(norms, norms)
-    factor = linalg.cho_factor(M_eq, lower=False, check_finite=False)
+    factor = _preconditioner_factor(M_eq)
 
     def precondition(s):
         return _scale(linalg.cho_solve(factor, _scale(s, norms), check_finite=False), norms)
@@ -567,12 +604,15 @@ def warn_if_ill_conditioned(cond, rank, n_terms, estimator_name):
         )
 
 
-def warn_not_converged(estimator_name, max_iter=CG_MAX_ITER):
+def warn_not_converged(estimator_name, max_iter=CG_MAX_ITER, solver="iterative"):
     """Warn when conjugate gradients stopped at the iteration cap."""
+    why = ("the samples probably cover the domain unevenly, which weakens its preconditioner"
+           if solver == "iterative" else
+           "the design is probably too ill-conditioned for its sketch's Gram matrix "
+           "(a condition number beyond about 1e7)")
     warnings.warn(
-        f"{estimator_name}: solver='iterative' did not converge in {max_iter} "
-        f"iterations; the samples probably cover the domain unevenly, which "
-        f"weakens its preconditioner. Use solver='normal' (or 'auto').",
+        f"{estimator_name}: solver={solver!r} did not converge in {max_iter} "
+        f"iterations; {why}. Use solver='normal' (or 'auto').",
         ConvergenceWarning,
         stacklevel=3,
     )

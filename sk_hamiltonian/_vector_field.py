@@ -61,7 +61,7 @@ class VectorFieldRegressor(BaseTrajectoryRegressor):
         each component separately (SINDy's sequentially thresholded least
         squares, in this library and the readable basis of monomials and
         angles). 0 fits every basis function.
-    solver : {"auto", "lstsq", "normal", "iterative"}, default="auto"
+    solver : {"auto", "lstsq", "normal", "iterative", "sketch"}, default="auto"
         As in :class:`HamiltonianRegressor`.
     verbose : int, default=0
         Print the progress of long fits when positive.
@@ -80,8 +80,8 @@ class VectorFieldRegressor(BaseTrajectoryRegressor):
         The box the basis lives on.
     cond_ : float
         Condition number of the column-equilibrated least-squares design
-        (estimated with ``solver="iterative"`` and beyond 1 500 unknowns with
-        ``"normal"``).
+        (estimated with ``solver="iterative"`` or ``"sketch"`` and beyond
+        1 500 unknowns with ``"normal"``).
     rank_ : int
         Numerical rank of that design.
     support_ : ndarray of the shape of ``coef_`` of bool

@@ -88,6 +88,7 @@ SPACES = [
     dict(degree=4, domain=[[-4.0, 4.0], [-2.0, 2.0]]),
     dict(degree=6, threshold=0.01),
     dict(degree=5, periodic=[False, True], separable=True, threshold=0.03),
+    dict(degree=4, solver="sketch"),  # solver_ is checked on loading
 ]
 
 

@@ -82,7 +82,7 @@ def test_simpson_simulates_with_rk4_by_default(chain_record):
     assert np.linalg.norm(Y - truth) / np.linalg.norm(truth) < 1e-3
 
 
-@pytest.mark.parametrize("solver", ["normal", "iterative"])
+@pytest.mark.parametrize("solver", ["normal", "iterative", "sketch"])
 def test_every_solver_gives_the_simpson_fit(chain_record, solver):
     _, _, times, record = chain_record
     Xt = steps_layout(times, record)

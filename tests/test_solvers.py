@@ -55,8 +55,9 @@ CASES = [
 
 
 @pytest.mark.parametrize("Model, params", CASES)
-@pytest.mark.parametrize("solver", ["normal", "iterative"])
+@pytest.mark.parametrize("solver", ["normal", "iterative", "sketch"])
 def test_solvers_reproduce_lstsq(layout, weights, Model, params, solver):
+    # (The sketch does not assume samples over the box: it runs every case.)
     if solver == "iterative" and "periodic" in params:
         pytest.skip("Henon-Heiles covers a small part of the periodic box: see the uniform test")
     reference = Model(degree=4, solver="lstsq", **params).fit(layout, sample_weight=weights)
@@ -169,6 +170,10 @@ def test_grouped_scatter_equals_the_dense_gram_across_tiles(n_columns):
 def test_choose_solver_by_size():
     assert choose_solver("auto", 1000, 100) == "lstsq"
     assert choose_solver("auto", 10**6, 1000) == "normal"
+    n = _solvers.SKETCH_MIN_TERMS
+    assert choose_solver("auto", _solvers.SKETCH_MIN_ROWS_PER_TERM * n, n) == "sketch"
+    assert choose_solver("auto", _solvers.SKETCH_MIN_ROWS_PER_TERM * n - 1, n) == "normal"
+    assert choose_solver("auto", 10**7, n - 1) == "normal"
     assert choose_solver("auto", 10**7, _solvers.ITERATIVE_MIN_TERMS) == "iterative"
     assert choose_solver("normal", 10, 10) == "normal"
 
@@ -179,6 +184,8 @@ def test_iterative_warns_when_it_stops_early_and_auto_falls_back(layout, monkeyp
     monkeypatch.setattr(_solvers.solve_iterative, "__defaults__", (None, 1e-11, 3, None))
     with pytest.warns(ConvergenceWarning, match="solver='normal'"):
         HamiltonianRegressor(degree=4, solver="iterative").fit(layout)
+    with pytest.warns(ConvergenceWarning, match="solver='sketch' .*ill-conditioned"):
+        HamiltonianRegressor(degree=4, solver="sketch").fit(layout)
     # "auto" picks conjugate gradients for large problems, and falls back to
     # the normal equations when they stall.
     monkeypatch.setattr(_solvers, "DENSE_MAX_ENTRIES", 0)

@@ -147,20 +147,20 @@ def test_noisy_pendulum_reads_as_its_formula_and_rolls_out_better(noisy_pendulum
     assert error(sparse) < 0.5 * error(dense)
 
 
-@pytest.mark.parametrize("solver", ["normal", "iterative"])
+@pytest.mark.parametrize("solver", ["normal", "iterative", "sketch"])
 def test_every_solver_gives_the_same_sparse_answer(noisy_pendulum, solver):
     _, Xt = noisy_pendulum
     reference = HamiltonianRegressor(degree=6, threshold=0.01, solver="lstsq", **PENDULUM_SPACE)
     reference.fit(Xt)
     model = clone(reference).set_params(solver=solver)
     with warnings.catch_warnings():
-        # The iterative solver's preconditioner assumes samples over the whole
-        # box; it may warn that it stopped early, and still be accurate.
+        # The closed-form preconditioner assumes samples over the whole box;
+        # it may warn that it stopped early, and still be accurate.
         warnings.simplefilter("ignore", ConvergenceWarning)
         model.fit(Xt)
     assert np.array_equal(model.support_, reference.support_)
     assert model.n_terms_ == reference.n_terms_
-    # The iterative solver stops at a relative residual of 1e-11.
+    # The iterative solvers stop at a relative residual of 1e-11.
     assert np.allclose(model.coef_, reference.coef_, rtol=1e-6, atol=1e-8)
 
 
@@ -317,7 +317,7 @@ def test_to_sympy_gives_the_formula():
     assert {s.name for s in named.free_symbols} == {"momentum", "angle"}
 
 
-@pytest.mark.parametrize("solver", ["lstsq", "normal", "iterative"])
+@pytest.mark.parametrize("solver", ["lstsq", "normal", "iterative", "sketch"])
 @pytest.mark.parametrize("cls", [HamiltonianRegressor, VectorFieldRegressor])
 def test_one_assembly_path_equals_separate_fits(noisy_pendulum, cls, solver):
     _, Xt = noisy_pendulum

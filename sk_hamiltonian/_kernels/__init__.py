@@ -14,10 +14,11 @@ path runs exactly as before.
 - :mod:`.threads`: BLAS threads chosen by problem size.
 """
 
-import os
 import threading
 
 import numpy as np
+
+from .threads import thread_pool
 
 _NUMBA = None
 _local = threading.local()
@@ -204,9 +205,6 @@ def _work(tree, K, m):
     return entry[1]
 
 
-_POOL = None
-
-
 def in_threads(part, n, minimum):
     """``part(rows)`` over ``n`` rows: in one slice, or one slice per core from ``minimum`` rows.
 
@@ -214,7 +212,6 @@ def in_threads(part, n, minimum):
     (no numba threading layer: nothing to go wrong in forked workers). At
     most ``numba.get_num_threads()`` threads.
     """
-    global _POOL
     if n < 2 * minimum:  # one slice, whatever the thread count
         part(slice(0, n))
         return
@@ -226,11 +223,7 @@ def in_threads(part, n, minimum):
     if n_threads <= 1:
         part(slice(0, n))
         return
-    if _POOL is None:
-        from concurrent.futures import ThreadPoolExecutor
-
-        _POOL = ThreadPoolExecutor(os.cpu_count() or 1, thread_name_prefix="sk_hamiltonian")
     bounds = np.linspace(0, n, n_threads + 1).astype(int)
-    futures = [_POOL.submit(part, slice(a, b)) for a, b in zip(bounds[:-1], bounds[1:])]
+    futures = [thread_pool().submit(part, slice(a, b)) for a, b in zip(bounds[:-1], bounds[1:])]
     for future in futures:
         future.result()

@@ -147,3 +147,42 @@ def limit_blas(flops):
 def gram_flops(n_rows, n_columns):
     """Multiply-adds of the Gram matrix (or a dense least-squares solve) of a design."""
     return 0.5 * float(n_rows) * float(n_columns) ** 2
+
+
+_POOL = None
+
+
+def thread_pool():
+    """The package's thread pool (one per process, a worker per core), created on first use."""
+    global _POOL
+    if _POOL is None:
+        from concurrent.futures import ThreadPoolExecutor
+
+        _POOL = ThreadPoolExecutor(os.cpu_count() or 1, thread_name_prefix="sk_hamiltonian")
+    return _POOL
+
+
+def map_on_idle_cores(function, items):
+    """``[function(item) for item in items]``, spread over the cores idle now.
+
+    For independent pieces of NumPy work that release the GIL (a pass of an
+    operator over chunks of samples): one thread unless :func:`idle_cores`
+    finds a core idle, and then the BLAS on one thread inside each, so that
+    the threads do not compete with the BLAS's own. Consecutive items go to
+    the same thread and the results come back in order, so a sum over them
+    in order is the same whatever the number of threads.
+    """
+    items = list(items)
+    n_threads = 1
+    if len(items) >= 2:
+        n_threads = int(min(len(items), os.cpu_count() or 1, 1 + max(0.0, idle_cores())))
+    if n_threads <= 1:
+        return [function(item) for item in items]
+    bounds = [round(k * len(items) / n_threads) for k in range(n_threads + 1)]
+
+    def run(span):
+        return [function(item) for item in items[span[0] : span[1]]]
+
+    with limit_blas(0):
+        results = list(thread_pool().map(run, zip(bounds[:-1], bounds[1:])))
+    return [result for part in results for result in part]
