@@ -121,7 +121,7 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
         unknown), which converges in about 50 iterations however the samples
         are spread; it pays for many unknowns and many samples. ``"auto"``
         picks ``"lstsq"`` while the design holds at most 5e7 entries,
-        ``"normal"`` beyond, ``"sketch"`` from 6 000 unknowns and 50 rows per
+        ``"normal"`` beyond, ``"sketch"`` from 5 000 unknowns and 50 rows per
         unknown on, and ``"iterative"`` from 10 000 unknowns on (falling back
         to ``"normal"`` if an iteration does not converge). See
         :ref:`scaling`.

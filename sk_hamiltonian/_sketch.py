@@ -13,11 +13,11 @@ algebra", Acta Numerica 2020, section 10). The iterations apply the design
 itself, so the solution is the least-squares one, not the sketch's.
 
 The embedding is a CountSketch: every row of the design is added, with a
-random sign, to one random row of the sketch (see :class:`DesignSketch`). Forming the sketch is one pass
-of additions over the design, and its Gram matrix costs
-``SKETCH_ROWS_PER_COLUMN / 2 * n_columns**3`` multiply-adds: for the paper's
-degree-18 fit (7 314 unknowns, 720 000 rows) 3 % of the design's Gram
-matrix. The triangle comes from a Cholesky factorization of that small Gram
+random sign, to one random row of the sketch (see :class:`DesignSketch`).
+Forming the sketch is one pass of additions over the design, and its Gram
+matrix costs ``SKETCH_ROWS_PER_COLUMN / 2 * n_columns**3`` multiply-adds:
+for the paper's degree-18 fit (7 314 unknowns, 720 000 rows) 3 % of the
+design's Gram matrix. The triangle comes from a Cholesky factorization of that small Gram
 matrix rather than a QR factorization of the sketch, which LAPACK ran at a
 tenth of the speed (a 9 000 x 3 000 QR took 13 s on two threads, its Gram
 matrix 1.1 s); squaring the sketch's condition number costs a
@@ -37,8 +37,10 @@ from ._solvers import mirror_upper
 # the preconditioned design a condition number of about
 # (1 + 1/sqrt(r)) / (1 - 1/sqrt(r)): 5.8 at r = 2, 3.7 at r = 3, 3.0 at r = 4
 # (measured on the double pendulum's designs, as for a Gaussian embedding of
-# the same size), so conjugate gradients gain a factor 0.7, 0.58 and 0.5 per
-# iteration, while the sketch's Gram matrix costs r n**3 / 2.
+# the same size), while the sketch's Gram matrix costs r n**3 / 2 and the
+# sketch r n**2 floats. On the paper's degree-18 fit r = 4 took 47
+# iterations where r = 3 took 48 to 50, for a third more memory and Gram
+# work: the iterations fall more slowly than the bound.
 SKETCH_ROWS_PER_COLUMN = 3
 # The seed of the embedding.
 SKETCH_SEED = 0

@@ -44,6 +44,7 @@ busy one agree to round-off, not bit for bit.
 """
 
 import os
+import threading
 from contextlib import nullcontext
 
 # Multiply-adds below which a BLAS call or a whole fit runs on one thread
@@ -150,6 +151,7 @@ def gram_flops(n_rows, n_columns):
 
 
 _POOL = None
+_POOL_PREFIX = "sk_hamiltonian"
 
 
 def thread_pool():
@@ -158,7 +160,7 @@ def thread_pool():
     if _POOL is None:
         from concurrent.futures import ThreadPoolExecutor
 
-        _POOL = ThreadPoolExecutor(os.cpu_count() or 1, thread_name_prefix="sk_hamiltonian")
+        _POOL = ThreadPoolExecutor(os.cpu_count() or 1, thread_name_prefix=_POOL_PREFIX)
     return _POOL
 
 
@@ -169,12 +171,14 @@ def map_on_idle_cores(function, items):
     operator over chunks of samples): one thread unless :func:`idle_cores`
     finds a core idle, and then the BLAS on one thread inside each, so that
     the threads do not compete with the BLAS's own. Consecutive items go to
-    the same thread and the results come back in order, so a sum over them
-    in order is the same whatever the number of threads.
+    the same thread and the results come back in order, so that a sum over
+    them adds the same terms in the same order whatever the number of
+    threads. Called from a worker of the pool, it runs in that worker.
     """
     items = list(items)
     n_threads = 1
-    if len(items) >= 2:
+    # A worker of the pool waiting on the pool could wait forever.
+    if len(items) >= 2 and not threading.current_thread().name.startswith(_POOL_PREFIX):
         n_threads = int(min(len(items), os.cpu_count() or 1, 1 + max(0.0, idle_cores())))
     if n_threads <= 1:
         return [function(item) for item in items]
