@@ -23,7 +23,7 @@ from ._least_squares import (
     fit_support,
 )
 from ._scoring import rollout_score
-from ._solvers import choose_solver, warn_if_ill_conditioned
+from ._solvers import NormalEquations, choose_solver, warn_if_ill_conditioned
 from ._streaming import PartialFitState
 from ._space import ModelSpace, index_set
 from ._space.readable import ReadableBasis
@@ -444,7 +444,7 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
         return LeastSquaresProblem(
             lambda grouped=False: self._design_blocks(data, grouped=grouped),
             self._normal_accumulator, lambda: self._design_operator(data),
-            self._n_unknowns(), self._n_nonnegative(),
+            self._n_unknowns(), self._n_nonnegative(), groups=self._column_groups(),
         )
 
     def _fit_coef(self, data):
@@ -842,9 +842,13 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
         """The design as a :class:`~sk_hamiltonian._design_operator.DesignOperator`."""
         raise NotImplementedError
 
+    def _column_groups(self):
+        """Columns each group of rows of the grouped design touches; None: one group of all."""
+        raise NotImplementedError
+
     def _normal_accumulator(self):
         """An empty :class:`~sk_hamiltonian._solvers.NormalEquations` with the design's groups."""
-        raise NotImplementedError
+        return NormalEquations(self._n_unknowns(), self._column_groups())
 
     def _n_unknowns(self):
         """Columns of the design."""

@@ -12,7 +12,6 @@ from ._design import column_groups, hamiltonian_blocks, quadrature_nodes
 from ._design_operator import DesignOperator
 from ._integrate import Dynamics, apply_structure
 from ._kernels.simulate import KernelModel
-from ._solvers import NormalEquations
 from ._space import ModelSpace
 from ._trajectories import check_n_states
 from .exceptions import ConservationWarning
@@ -270,8 +269,8 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
             grouped=grouped,
         )
 
-    def _normal_accumulator(self):
-        return NormalEquations(self._n_unknowns(), column_groups(self._space, self.damping))
+    def _column_groups(self):
+        return column_groups(self._space, self.damping)
 
     def _design_operator(self, data):
         space = self._space

@@ -77,14 +77,18 @@ class LeastSquaresProblem:
         Columns of the design (unknowns).
     n_nonnegative : int, default=0
         How many of the last unknowns are constrained to be ``>= 0``.
+    groups : list of ndarray of int, default=None
+        The columns of each group of ``blocks(grouped=True)``; None: one
+        group of every column.
     """
 
-    def __init__(self, blocks, accumulator, operator, n_columns, n_nonnegative=0):
+    def __init__(self, blocks, accumulator, operator, n_columns, n_nonnegative=0, groups=None):
         self.blocks = blocks
         self.accumulator = accumulator
         self.operator = operator
         self.n_columns = n_columns
         self.n_nonnegative = n_nonnegative
+        self.groups = groups
 
     def column_norms(self, basis=None):
         """Norms of the columns of ``A`` (or ``A @ basis``), from one pass over its blocks."""
@@ -154,8 +158,7 @@ def column_solver(problem, solver, *, single_solve=False, many_supports=False, f
     if solver in ("iterative", "sketch"):
         gram = None
         if solver == "sketch":
-            groups = problem.accumulator().groups
-            gram = DesignSketch(problem.n_columns, groups).add_blocks(
+            gram = DesignSketch(problem.n_columns, problem.groups).add_blocks(
                 problem.blocks(grouped=True)).gram()
         operator = problem.operator()
 

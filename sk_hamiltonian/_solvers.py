@@ -436,17 +436,20 @@ def _ritz_condition(alphas, betas):
     return float(ritz[-1] / ritz[0]) if ritz[0] > 0 else np.inf
 
 
-def _preconditioner_factor(M_eq):
-    """Cholesky factor of an equilibrated preconditioner, shifted if it is singular.
+# Shift of the unit diagonal of an equilibrated preconditioner that is not
+# numerically positive definite (a sketch's Gram matrix where the design is
+# rank deficient): directions of the design below sqrt(PRECONDITIONER_SHIFT)
+# relative are then not preconditioned, and round-off in the null directions
+# is amplified at most 1 / PRECONDITIONER_SHIFT times (to ~1e-8 relative).
+PRECONDITIONER_SHIFT = np.sqrt(np.finfo(float).eps)
 
-    A sketch's Gram matrix is singular where the design is rank deficient;
-    the shift (round-off relative to its unit diagonal) only slows the
-    iteration along the null directions, which carry no data.
-    """
+
+def _preconditioner_factor(M_eq):
+    """Cholesky factor of an equilibrated preconditioner, shifted if it is singular."""
     try:
         return linalg.cho_factor(M_eq, lower=False, check_finite=False)
     except linalg.LinAlgError:
-        shifted = M_eq + np.finfo(float).eps * M_eq.shape[0] * np.eye(M_eq.shape[0])
+        shifted = M_eq + PRECONDITIONER_SHIFT * np.eye(M_eq.shape[0])
         return linalg.cho_factor(shifted, lower=False, check_finite=False, overwrite_a=True)
 
 

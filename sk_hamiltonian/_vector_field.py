@@ -7,7 +7,6 @@ from ._design import quadrature_nodes, vector_field_blocks
 from ._design_operator import DesignOperator
 from ._integrate import Dynamics
 from ._kernels.simulate import KernelModel
-from ._solvers import NormalEquations
 
 
 class VectorFieldRegressor(BaseTrajectoryRegressor):
@@ -137,8 +136,9 @@ class VectorFieldRegressor(BaseTrajectoryRegressor):
             space, data, self.fit_on, quadrature_nodes(space, of_gradient=False)
         )
 
-    def _normal_accumulator(self):
-        return NormalEquations(self._n_unknowns())
+    def _column_groups(self):
+        # Every row touches every column: one group.
+        return None
 
     def _design_operator(self, data):
         space = self._space
