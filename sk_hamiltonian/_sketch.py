@@ -58,8 +58,8 @@ class DesignSketch:
     around): a pair of rows of different blocks meets in one row of the
     sketch with probability ``1 / n_rows``, as for independent hashing, and
     rows of one block never meet. The window is a strided slab of the
-    sketch, which NumPy updates at about 7 ns per entry; independent rows
-    scattered through an index took 22 to 256 ns per entry (scratch timings
+    sketch, which NumPy updates at 7 to 8 ns per entry; independent rows
+    scattered through an index took 200 to 256 ns per entry (scratch timings
     of one degree-18 block of 363 rows and 5 500 columns).
 
     Parameters
@@ -105,7 +105,7 @@ class DesignSketch:
                     view += part
                 else:
                     # Gather, add, scatter: ``view[columns] += part`` through
-                    # an index on a strided view was 13 to 17 times slower.
+                    # an index on a strided view was 3 to 17 times slower.
                     rows = view[columns]
                     rows += part
                     view[columns] = rows
