@@ -319,14 +319,11 @@ def fits(cfg, rows):
         row(rows, "fit", f"fit n={degree} M={M} ({model.solver_}) / one A.T@A", seconds / gram,
             "ratio", target if M >= 8000 else None,
             f"fit {seconds:.2f} s, A.T@A {gram:.2f} s, {model.n_terms_} terms, {n_rows} rows")
-    # The sketch-preconditioned solver on the largest case, for the choice of
-    # "auto" (which keeps the normal equations at this size).
-    degree, M = cfg["fit_cases"][-1]
-    Xt = layout(M)
+    # The sketch-preconditioned solver on the largest (the last) case, for the
+    # choice of "auto" (which keeps the normal equations at this size).
     start = time.perf_counter()
     model = fit(Xt, degree, solver="sketch")
     seconds = time.perf_counter() - start
-    n_rows = Xt.shape[0] * Xt.shape[1] * 4
     gram = gram_time(n_rows, model.n_terms_, 1)
     row(rows, "fit", f"fit n={degree} M={M} (sketch) / one A.T@A", seconds / gram, "ratio", None,
         f"fit {seconds:.2f} s, A.T@A {gram:.2f} s")

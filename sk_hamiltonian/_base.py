@@ -443,7 +443,7 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
         """The design of a fit on ``data``, in the forms the solvers take."""
         return LeastSquaresProblem(
             lambda grouped=False: self._design_blocks(data, grouped=grouped),
-            self._normal_accumulator, lambda: self._design_operator(data),
+            lambda: self._design_operator(data),
             self._n_unknowns(), self._n_nonnegative(), groups=self._column_groups(),
         )
 

@@ -4,7 +4,8 @@ Every fit of the package is ``min_c ||A c - b||``, possibly over a subspace of
 the coefficients. Three parts, each replaceable on its own:
 
 - :class:`LeastSquaresProblem`, the design of one fit in the three forms the
-  solvers take (row blocks, grouped blocks into normal equations, an operator);
+  solvers take (row blocks, grouped blocks for the normal equations or a
+  sketch, an operator);
 - a *column solver* (:func:`column_solver`, :func:`accumulated_solver`):
   ``solve(keep, basis=None) -> (u, cond, rank)``, the least-squares solution
   over the columns of the boolean mask ``keep``, or over the coefficients
@@ -44,6 +45,7 @@ from scipy import sparse
 from sklearn.exceptions import ConvergenceWarning
 
 from ._solvers import (
+    NormalEquations,
     solve_dense,
     solve_iterative,
     solve_nonnegative_tail,
@@ -65,11 +67,7 @@ class LeastSquaresProblem:
     blocks : callable
         ``blocks(grouped=False)``: an iterable of row blocks ``(A, b)`` of
         every column, or ``(A, b, group)`` with ``grouped=True`` (see
-        ``accumulator``).
-    accumulator : callable
-        ``accumulator()``: an empty
-        :class:`~sk_hamiltonian._solvers.NormalEquations` with the design's
-        column groups.
+        ``groups``).
     operator : callable
         ``operator()``: the design as a
         :class:`~sk_hamiltonian._design_operator.DesignOperator`.
@@ -78,13 +76,13 @@ class LeastSquaresProblem:
     n_nonnegative : int, default=0
         How many of the last unknowns are constrained to be ``>= 0``.
     groups : list of ndarray of int, default=None
-        The columns of each group of ``blocks(grouped=True)``; None: one
-        group of every column.
+        The columns of each group of ``blocks(grouped=True)``, as the normal
+        equations and the sketch accumulate them; None: one group of every
+        column.
     """
 
-    def __init__(self, blocks, accumulator, operator, n_columns, n_nonnegative=0, groups=None):
+    def __init__(self, blocks, operator, n_columns, n_nonnegative=0, groups=None):
         self.blocks = blocks
-        self.accumulator = accumulator
         self.operator = operator
         self.n_columns = n_columns
         self.n_nonnegative = n_nonnegative
@@ -187,7 +185,7 @@ def column_solver(problem, solver, *, single_solve=False, many_supports=False, f
             return solve_dense(kept if basis is None else _times(kept, basis), b)
 
         return solve_svd, lambda basis=None: np.sqrt(_squared_norms(A, basis))
-    accumulator = problem.accumulator().add_blocks(
+    accumulator = NormalEquations(problem.n_columns, problem.groups).add_blocks(
         problem.blocks(grouped=True), progress=block_progress
     )
     gram, rhs = accumulator.result()

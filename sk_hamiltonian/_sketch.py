@@ -17,9 +17,9 @@ random sign, to one random row of the sketch (see :class:`DesignSketch`).
 Forming the sketch is one pass of additions over the design, and its Gram
 matrix costs ``SKETCH_ROWS_PER_COLUMN / 2 * n_columns**3`` multiply-adds:
 for the paper's degree-18 fit (7 314 unknowns, 720 000 rows) 3 % of the
-design's Gram matrix. The triangle comes from a Cholesky factorization of that small Gram
-matrix rather than a QR factorization of the sketch, which LAPACK ran at a
-tenth of the speed (a 9 000 x 3 000 QR took 13 s on two threads, its Gram
+design's Gram matrix. The triangle comes from a Cholesky factorization of
+that small Gram matrix rather than a QR factorization of the sketch, which
+LAPACK ran at a tenth of the speed (a 9 000 x 3 000 QR took 13 s on two threads, its Gram
 matrix 1.1 s); squaring the sketch's condition number costs a
 preconditioner nothing while it stays below about ``1e7``, and a design that
 ill-conditioned needs the normal equations' pseudo-inverse anyway.
@@ -30,7 +30,7 @@ The embedding is drawn from a fixed seed, so that a fit is reproducible.
 import numpy as np
 from scipy.linalg import blas
 
-from ._kernels.threads import limit_blas
+from ._kernels.threads import gram_flops, limit_blas
 from ._solvers import mirror_upper
 
 # Rows of the sketch per column of the design. A sketch of r n rows leaves
@@ -123,7 +123,7 @@ class DesignSketch:
         The sketch itself is released: only its Gram matrix is needed.
         """
         T = self.transposed
-        with limit_blas(0.5 * T.shape[1] * T.shape[0] ** 2):
+        with limit_blas(gram_flops(*T.T.shape)):
             upper = blas.dsyrk(1.0, T.T, trans=1, lower=0)
         self.transposed = None
         return mirror_upper(upper)
