@@ -74,9 +74,8 @@ from threadpoolctl import threadpool_info, threadpool_limits  # noqa: E402
 
 from sk_hamiltonian import DerivativeTransformer, HamiltonianRegressor, config_context  # noqa: E402
 from sk_hamiltonian._kernels import numba_available  # noqa: E402
-from sk_hamiltonian._design import column_groups, hamiltonian_blocks, quadrature_nodes  # noqa: E402
+from sk_hamiltonian._design import quadrature_nodes  # noqa: E402
 from sk_hamiltonian._design_operator import DesignOperator  # noqa: E402
-from sk_hamiltonian._solvers import NormalEquations  # noqa: E402
 from sk_hamiltonian.datasets import load_system, make_trajectories  # noqa: E402
 
 SYSTEM = load_system("double_pendulum")
@@ -349,7 +348,11 @@ def fits(cfg, rows):
 
 
 def iteration_against_gram(degree, M):
-    """Seconds per state of one CG iteration (A x and A^T r) and of the grouped Gram."""
+    """Seconds per state of one CG iteration (A x and A^T r) and of the normal equations.
+
+    The normal equations as ``solver="normal"`` accumulates them (factored
+    where that pays, see ``sk_hamiltonian._factored``).
+    """
     Xt = layout(M)
     model = HamiltonianRegressor(degree=degree, domain=SYSTEM.domain)
     with warnings.catch_warnings():
@@ -365,8 +368,7 @@ def iteration_against_gram(degree, M):
         operator.rmatvec(operator.matvec(x))
 
     def gram():
-        NormalEquations(space.n_terms, column_groups(space)).add_blocks(
-            hamiltonian_blocks(space, data, "derivatives", 1, grouped=True))
+        model._accumulate(data).result()
 
     return best(iteration, 2) / n_states, best(gram, 1) / n_states, space.n_terms
 

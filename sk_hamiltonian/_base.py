@@ -232,7 +232,7 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
             self._check_size(_ShapeOnly(data))
             # Frames: _warn_outside, partial_fit, its available_if wrapper.
             self._warn_outside(data.states, what="the training states", stacklevel=4)
-        state.add(self._design_blocks(data, grouped=True), data, self._training_step(data))
+        state.add(self, data, self._training_step(data))
         self._partial = state
         self._solve_accumulated(state, data)
         return self
@@ -436,7 +436,10 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
         """Model space and solver for ``data``; returns the number of equations."""
         self._set_up_space(data)
         n_rows = data.n_rows(self.fit_on) * self._rows_per_sample(data.states.shape[1])
-        self.solver_ = choose_solver(self.solver, n_rows, self.powers_.shape[0])
+        self.solver_ = choose_solver(
+            self.solver, n_rows, self.powers_.shape[0],
+            factored=lambda: self._factored_maps() is not None,
+        )
         return n_rows
 
     def _least_squares_problem(self, data):
@@ -445,7 +448,14 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
             lambda grouped=False: self._design_blocks(data, grouped=grouped),
             lambda: self._design_operator(data),
             self._n_unknowns(), self._n_nonnegative(), groups=self._column_groups(),
+            normal_equations=lambda progress=None: self._accumulate(data, progress).result(),
         )
+
+    def _accumulate(self, data, progress=None, accumulator=None):
+        """``accumulator`` (default: a new :meth:`_normal_accumulator`) with ``data``'s blocks added."""
+        if accumulator is None:
+            accumulator = self._normal_accumulator()
+        return accumulator.add_blocks(self._normal_blocks(data, accumulator), progress)
 
     def _fit_coef(self, data):
         """Solve the least-squares problem of ``data`` with ``solver_``; set the coefficients."""
@@ -847,8 +857,21 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
         raise NotImplementedError
 
     def _normal_accumulator(self):
-        """An empty :class:`~sk_hamiltonian._solvers.NormalEquations` with the design's groups."""
+        """An empty accumulator of the design's normal equations (see :meth:`_normal_blocks`).
+
+        Here a :class:`~sk_hamiltonian._solvers.NormalEquations` with the
+        design's groups.
+        """
         return NormalEquations(self._n_unknowns(), self._column_groups())
+
+    def _factored_maps(self):
+        """The design's gradient maps where its normal equations are factored (see
+        :mod:`sk_hamiltonian._factored`), else None (here: never)."""
+        return None
+
+    def _normal_blocks(self, data, accumulator):
+        """The blocks of ``data`` that ``accumulator`` (from :meth:`_normal_accumulator`) takes."""
+        return self._design_blocks(data, grouped=True)
 
     def _n_unknowns(self):
         """Columns of the design."""

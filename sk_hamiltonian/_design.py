@@ -196,12 +196,15 @@ def _rows_per_block(width):
     return max(1, BLOCK_ENTRIES // max(1, width))
 
 
-def _weighted_gradients(space, quadrature, rows, out):
-    """Write ``sum_k w_k grad phi(X_k[rows])`` (terms-major) into ``out``."""
+def _weighted(evaluate, quadrature, rows, out):
+    """Write ``sum_k w_k evaluate(X_k[rows])`` (terms-major) into ``out``.
+
+    ``evaluate(X, out=...)`` is a space's ``gradients_t`` or ``values_t``.
+    """
     spare = scratch("design.node", out.shape) if len(quadrature.points) > 1 else None
     for k, (X, w) in enumerate(quadrature.points):
         target = out if k == 0 else spare
-        space.gradients_t(X[rows], out=target)
+        evaluate(X[rows], out=target)
         quadrature.scale(target, w, rows)
         if k:
             out += target
@@ -270,7 +273,7 @@ def hamiltonian_blocks(space, data, fit_on, n_nodes, damping=False, grouped=Fals
         n = rate[rows].shape[0]
         # Terms-major: (column, variable, sample), so that A = block.T.
         block = scratch("design.block", (n_columns, m, n))
-        _weighted_gradients(space, quadrature, rows, block[:n_terms])
+        _weighted(space.gradients_t, quadrature, rows, block[:n_terms])
         targets = symplectic_targets(rate[rows]).T  # (variable, sample)
         if damping:
             block[n_terms:] = 0.0
@@ -326,6 +329,58 @@ def _grouped_blocks(space, data, fit_on, n_nodes, damping, groups):
                 block *= root
         for i, block in enumerate(blocks):
             yield block.T, targets[i], i
+
+
+def value_blocks(maps, data, fit_on, n_nodes, damping=False):
+    """Row blocks ``(B, targets)`` of the value design of a Hamiltonian fit.
+
+    The factored form of :func:`hamiltonian_blocks` (see
+    :mod:`sk_hamiltonian._factored`): one row per state (or step), the
+    functions of the value basis ``maps.value_space`` at the same points,
+    quadrature and weights, followed with ``damping`` by the ``d`` friction
+    columns of the ``-dp/dt`` rows (the observed ``dq/dt``); the targets are
+    those of every variable's rows side by side.
+
+    A block is a Fortran-ordered view of the thread's workspace, valid until
+    the next block is requested.
+
+    Parameters
+    ----------
+    maps : DerivativeMaps
+        The gradient of the fit's model space on its value basis.
+    data : TrainingData
+    fit_on : {"derivatives", "steps", "simpson"}
+    n_nodes : int
+        Gauss-Legendre nodes of a step (as for :func:`hamiltonian_blocks`).
+    damping : bool, default=False
+
+    Yields
+    ------
+    B : ndarray of shape (n_rows, n_values [+ d])
+    targets : ndarray of shape (n_rows, n_states)
+        ``J dx/dt`` (or its mean over the step), weighted as ``B``.
+    """
+    space = maps.value_space
+    m = space.n_states
+    d = m // 2
+    n_values = maps.n_values
+    n_columns = n_values + (d if damping else 0)
+    quadrature = data.quadrature(space, fit_on, n_nodes)
+    rate, weight = quadrature.rate, quadrature.weight
+    step = _rows_per_block(n_columns)
+    for start in range(0, quadrature.n_groups, step):
+        rows = slice(start, start + step)
+        n = rate[rows].shape[0]
+        block = scratch("design.values", (n_columns, n))
+        _weighted(space.values_t, quadrature, rows, block[:n_values])
+        if damping:
+            block[n_values:] = rate[rows, d:].T  # observed dq/dt, in the -dp/dt rows
+        targets = symplectic_targets(rate[rows])
+        if weight is not None:
+            root = np.sqrt(weight[rows])
+            block *= root
+            targets = targets * root[:, None]
+        yield block.T, targets
 
 
 def vector_field_blocks(space, data, fit_on, n_nodes):

@@ -38,7 +38,7 @@ def _chunk_state(estimator, X, y, weight):
     """On a worker: the normal equations and statistics of one chunk."""
     data = estimator._training_data(X, y, weight, reset=False)
     state = PartialFitState(estimator, estimator._normal_accumulator(), data.states.shape[1])
-    state.add(estimator._design_blocks(data, grouped=True), data, estimator._training_step(data))
+    state.add(estimator, data, estimator._training_step(data))
     return state
 
 

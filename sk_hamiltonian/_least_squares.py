@@ -3,9 +3,9 @@
 Every fit of the package is ``min_c ||A c - b||``, possibly over a subspace of
 the coefficients. Three parts, each replaceable on its own:
 
-- :class:`LeastSquaresProblem`, the design of one fit in the three forms the
+- :class:`LeastSquaresProblem`, the design of one fit in the forms the
   solvers take (row blocks, grouped blocks for the normal equations or a
-  sketch, an operator);
+  sketch, an operator, and its normal equations by the cheapest route);
 - a *column solver* (:func:`column_solver`, :func:`accumulated_solver`):
   ``solve(keep, basis=None) -> (u, cond, rank)``, the least-squares solution
   over the columns of the boolean mask ``keep``, or over the coefficients
@@ -79,14 +79,27 @@ class LeastSquaresProblem:
         The columns of each group of ``blocks(grouped=True)``, as the normal
         equations and the sketch accumulate them; None: one group of every
         column.
+    normal_equations : callable, default=None
+        ``normal_equations(progress=None) -> (A^T A, A^T b)``, where the
+        design has a cheaper route to them (:mod:`._factored`); None: from
+        ``blocks(grouped=True)``.
     """
 
-    def __init__(self, blocks, operator, n_columns, n_nonnegative=0, groups=None):
+    def __init__(self, blocks, operator, n_columns, n_nonnegative=0, groups=None,
+                 normal_equations=None):
         self.blocks = blocks
         self.operator = operator
         self.n_columns = n_columns
         self.n_nonnegative = n_nonnegative
         self.groups = groups
+        self._normal_equations = normal_equations
+
+    def normal_equations(self, progress=None):
+        """``(A^T A, A^T b)``; ``progress(k, n_rows)`` after each block."""
+        if self._normal_equations is not None:
+            return self._normal_equations(progress)
+        return NormalEquations(self.n_columns, self.groups).add_blocks(
+            self.blocks(grouped=True), progress=progress).result()
 
     def column_norms(self, basis=None):
         """Norms of the columns of ``A`` (or ``A @ basis``), from one pass over its blocks."""
@@ -185,10 +198,7 @@ def column_solver(problem, solver, *, single_solve=False, many_supports=False, f
             return solve_dense(kept if basis is None else _times(kept, basis), b)
 
         return solve_svd, lambda basis=None: np.sqrt(_squared_norms(A, basis))
-    accumulator = NormalEquations(problem.n_columns, problem.groups).add_blocks(
-        problem.blocks(grouped=True), progress=block_progress
-    )
-    gram, rhs = accumulator.result()
+    gram, rhs = problem.normal_equations(block_progress)
     operator = problem.operator()
 
     def residual(keep):

@@ -65,7 +65,9 @@ ITERATIVE_MIN_TERMS = 10_000
 # which the rows make small beside the design's). Measured on the double
 # pendulum, M = 60 000 (720 000 rows), both cores: at n = 16 (4 844
 # unknowns) 165 s against the normal equations' 172 s, at n = 18 (7 314)
-# 240 s against 405 s.
+# 240 s against 405 s. Factored normal equations (one Gram matrix of the
+# value basis, see _factored) took 55 s and 119 s on the same fits, so the
+# sketch is left to designs without them.
 SKETCH_MIN_TERMS = 5_000
 SKETCH_MIN_ROWS_PER_TERM = 50
 # Reciprocal condition number of the equilibrated normal matrix below which
@@ -85,7 +87,7 @@ CG_RTOL = 1e-11
 CG_MAX_ITER = 400
 
 
-def choose_solver(solver, n_rows, n_terms):
+def choose_solver(solver, n_rows, n_terms, factored=False):
     """Resolve ``solver="auto"`` from the size of the design.
 
     Parameters
@@ -94,13 +96,18 @@ def choose_solver(solver, n_rows, n_terms):
         The requested solver.
     n_rows, n_terms : int
         Shape of the design.
+    factored : bool or callable, default=False
+        Whether the normal equations come from one Gram matrix of a value
+        basis (:mod:`._factored`), ``n_states`` times cheaper than the
+        grouped ones the sketch's threshold was measured against; a callable
+        returning it is called only where the choice depends on it.
 
     Returns
     -------
     solver : str
         ``"lstsq"`` up to ``DENSE_MAX_ENTRIES`` entries; beyond, ``"normal"``;
-        ``"sketch"`` from ``SKETCH_MIN_TERMS`` unknowns and
-        ``SKETCH_MIN_ROWS_PER_TERM`` rows per unknown on, and ``"iterative"``
+        unless ``factored``, ``"sketch"`` from ``SKETCH_MIN_TERMS`` unknowns
+        and ``SKETCH_MIN_ROWS_PER_TERM`` rows per unknown on; ``"iterative"``
         from ``ITERATIVE_MIN_TERMS`` unknowns on, where the Gram matrix costs
         more than the iterations it saves (and more memory than is
         reasonable).
@@ -112,7 +119,7 @@ def choose_solver(solver, n_rows, n_terms):
     if n_terms >= ITERATIVE_MIN_TERMS:
         return "iterative"
     if n_terms >= SKETCH_MIN_TERMS and n_rows >= SKETCH_MIN_ROWS_PER_TERM * n_terms:
-        return "sketch"
+        return "normal" if (factored() if callable(factored) else factored) else "sketch"
     return "normal"
 
 

@@ -33,8 +33,9 @@ class PartialFitState:
     ----------
     estimator : BaseTrajectoryRegressor
         Whose model-space parameters are recorded.
-    accumulator : NormalEquations
-        An empty accumulator with the design's column groups.
+    accumulator : NormalEquations or FactoredNormalEquations
+        An empty accumulator of the design's normal equations
+        (``estimator._normal_accumulator()``).
     n_states : int
         State variables.
     """
@@ -67,9 +68,9 @@ class PartialFitState:
                     f"partial_fit calls, or start over with fit (or a clone)."
                 )
 
-    def add(self, blocks, data, step):
-        """Accumulate one chunk: its design blocks, states and training step."""
-        self.accumulator.add_blocks(blocks)
+    def add(self, estimator, data, step):
+        """Accumulate one chunk: its normal equations (by ``estimator``), states and training step."""
+        estimator._accumulate(data, accumulator=self.accumulator)
         states = data.states
         n = states.shape[0]
         # Chan et al.'s parallel update of the mean and sum of squared deviations.

@@ -70,6 +70,36 @@ def fourier_column(frequency):
     return np.where(frequency > 0, 2 * frequency - 1, -2 * frequency)
 
 
+def fourier_derivative_matrix(degree):
+    """Matrix ``D`` with ``f'_n = sum_k D[k, n] f_k`` for the columns ``f`` of the basis.
+
+    The sibling of :func:`~sk_hamiltonian._space.legendre.legendre_derivative_matrix`:
+    with respect to ``theta``, ``cos(k theta)`` (column ``2k - 1``) has the
+    derivative ``-k sin(k theta)`` (column ``2k``) and ``sin(k theta)`` the
+    derivative ``k cos(k theta)``; the constant has none.
+
+    Parameters
+    ----------
+    degree : int
+        Highest frequency ``K``.
+
+    Returns
+    -------
+    D : ndarray of shape (2 * degree + 1, 2 * degree + 1)
+    """
+    D = np.zeros((2 * degree + 1, 2 * degree + 1))
+    k = np.arange(1, degree + 1)
+    D[2 * k, 2 * k - 1] = -k
+    D[2 * k - 1, 2 * k] = k
+    return D
+
+
+def fourier_frequency(column):
+    """Signed frequency of a table column, the inverse of :func:`fourier_column`."""
+    column = np.asarray(column)
+    return np.where(column % 2 == 1, (column + 1) // 2, -(column // 2))
+
+
 def fourier_tables(theta, degree, n_derivatives=1):
     """The real trigonometric basis and its derivatives at every angle.
 

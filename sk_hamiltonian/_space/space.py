@@ -16,6 +16,7 @@ from .. import _kernels
 from .._config import use_numba
 from . import tensor
 from .contraction import ContractionPlan
+from .derivative_maps import DerivativeMaps
 from .flat import FlatPlan, choose_flat
 from .fourier import fourier_column, wrap_to_period
 from .tables import FactorTables
@@ -146,15 +147,18 @@ class ModelSpace:
         self.factor_tables = FactorTables(
             self.domain, self.periodic, self.legendre_degree, self.fourier_degree, self.width
         )
-        # Built on first use: (plan,), the flat plans by order, and the
-        # coefficient matrices of the last coefficients (cached_binding).
+        # Built on first use: (plan,), the flat plans by order, the
+        # coefficient matrices of the last coefficients (cached_binding) and
+        # the derivative maps.
         self._contraction = None
         self._flat_plans = {}
         self._bindings = {}
+        self._derivative_maps = None
 
     def __getstate__(self):
         # Caches are rebuilt on first use; keep pickles (joblib, dask) small.
-        state = {**self.__dict__, "_contraction": None, "_flat_plans": {}, "_bindings": {}}
+        state = {**self.__dict__, "_contraction": None, "_flat_plans": {}, "_bindings": {},
+                 "_derivative_maps": None}
         state.pop("_kernel_tree", None)
         return state
 
@@ -162,6 +166,7 @@ class ModelSpace:
         # Pickles of other versions may lack (or carry other) caches.
         self.__dict__.update(state)
         self._contraction, self._flat_plans, self._bindings = None, {}, {}
+        self._derivative_maps = None
 
     @property
     def n_states(self):
@@ -286,9 +291,9 @@ class ModelSpace:
         """Values of the basis functions, ndarray of shape (n_samples, n_terms)."""
         return self.values_t(X).T
 
-    def values_t(self, X):
-        """Values of the basis functions, terms-major: ndarray (n_terms, n_samples)."""
-        return tensor.values(self.factor_tables(X, 0), self.layout)
+    def values_t(self, X, out=None):
+        """Values of the basis functions, terms-major: ndarray (n_terms, n_samples), into ``out`` if given."""
+        return tensor.values(self.factor_tables(X, 0), self.layout, out=out)
 
     def gradients(self, X):
         """Gradients of the basis functions, ndarray of shape (n_samples, n_states, n_terms)."""
@@ -297,6 +302,12 @@ class ModelSpace:
     def gradients_t(self, X, out=None):
         """Gradients, terms-major: ndarray (n_terms, n_states, n_samples), into ``out`` if given."""
         return tensor.gradients(self.factor_tables(X, 1), self.layout, out=out)
+
+    def derivative_maps(self):
+        """The gradient as maps onto a value basis (:class:`.DerivativeMaps`), built once."""
+        if self._derivative_maps is None:
+            self._derivative_maps = DerivativeMaps(self)
+        return self._derivative_maps
 
     def gradient_rows_t(self, X, rows, outs):
         """``d phi_j / d x_i`` for the functions ``rows[i]``, into ``outs[i]`` (dense layouts).

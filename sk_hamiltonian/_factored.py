@@ -1,0 +1,87 @@
+"""Normal equations of a gradient design, from the Gram matrix of its value design.
+
+The rows of variable ``i`` of a Hamiltonian fit hold gradients, ``A_i = B
+T_i`` (:mod:`._space.derivative_maps`): ``B`` the values of the value basis
+at the fit's points, with the same quadrature and weights for every variable.
+So::
+
+    A^T A = sum_i T_i^T (B^T B) T_i,        A^T b = sum_i T_i^T (B^T b_i),
+
+and the samples are visited once, by one rank-k update of ``B^T B``, instead of
+once per variable (:class:`~sk_hamiltonian._solvers.NormalEquations` with the
+groups of :func:`~sk_hamiltonian._design.column_groups`). The maps ``T_i`` are
+sparse (at most ``degree / 2 + 1`` entries per function), so applying them
+costs ``O(n_terms * n_values)`` per entry of a column: small against the
+samples' pass.
+
+Columns besides the basis (the friction unknowns, each in the rows of one
+variable) ride along as extra columns of ``B``.
+"""
+
+import numpy as np
+
+from ._solvers import NormalEquations, mirror_upper
+
+
+class FactoredNormalEquations:
+    """``A^T A`` and ``A^T b`` of a gradient design, accumulated on its value design.
+
+    The counterpart of :class:`~sk_hamiltonian._solvers.NormalEquations`
+    (same ``add_blocks``, ``+=`` and ``result``), for the blocks of
+    :func:`~sk_hamiltonian._design.value_blocks`.
+
+    Parameters
+    ----------
+    maps : DerivativeMaps
+        The gradient of the model space on its value basis.
+    extra_variables : sequence of int, default=()
+        For each column after the basis (the friction unknowns), the
+        variable in whose rows it is nonzero.
+    """
+
+    def __init__(self, maps, extra_variables=()):
+        self.maps = maps
+        self.extra_variables = np.asarray(extra_variables, dtype=np.intp)
+        self.n_terms = maps.maps_t[0].shape[0] if maps.maps_t else 0
+        self.n_columns = self.n_terms + self.extra_variables.size
+        self.values = NormalEquations(maps.n_values + self.extra_variables.size)
+
+    @property
+    def n_rows(self):
+        """Equations accumulated: samples times variables."""
+        return self.values.n_rows * len(self.maps.maps_t)
+
+    def add_blocks(self, blocks, progress=None):
+        """Add blocks ``(B, targets)``: values and extras ``(n, n_values + n_extra)``, ``(n, n_states)``."""
+        counted = None if progress is None else (lambda k, _: progress(k, self.n_rows))
+        self.values.add_blocks(blocks, counted)
+        return self
+
+    def __iadd__(self, other):
+        """Add another accumulator of the same design (e.g. from another chunk)."""
+        self.values += other.values
+        return self
+
+    def result(self):
+        """The accumulated ``(A^T A, A^T b)`` of the gradient design."""
+        values_gram, values_rhs = self.values.result()
+        n_values, n_terms = self.maps.n_values, self.n_terms
+        if values_rhs.ndim == 1:  # nothing accumulated yet
+            values_rhs = np.zeros((values_gram.shape[0], len(self.maps.maps_t)))
+        G = np.ascontiguousarray(values_gram[:n_values, :n_values])
+        gram = np.zeros((self.n_columns, self.n_columns))
+        rhs = np.zeros(self.n_columns)
+        basis = gram[:n_terms, :n_terms]
+        for i, T_t in enumerate(self.maps.maps_t):
+            if T_t.nnz == 0:
+                continue
+            GT = np.ascontiguousarray((T_t @ G).T)  # G T_i, G symmetric
+            basis += T_t @ GT
+            rhs[:n_terms] += T_t @ values_rhs[:n_values, i]
+        for e, i in enumerate(self.extra_variables):
+            column = n_terms + e
+            gram[:n_terms, column] = self.maps.maps_t[i] @ values_gram[:n_values, n_values + e]
+            gram[column, column] = values_gram[n_values + e, n_values + e]
+            rhs[column] = values_rhs[n_values + e, i]
+        # The sparse products round the two triangles differently: keep one.
+        return mirror_upper(gram), rhs
