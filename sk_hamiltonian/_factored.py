@@ -20,7 +20,10 @@ variable) ride along as extra columns of ``B``.
 
 import numpy as np
 
-from ._solvers import NormalEquations, mirror_upper
+from ._solvers import MIRROR_TILE, NormalEquations, mirror_upper
+
+# Rows of the maps per sparse product in FactoredNormalEquations.result.
+RESULT_ROWS = 128
 
 
 class FactoredNormalEquations:
@@ -64,19 +67,37 @@ class FactoredNormalEquations:
 
     def result(self):
         """The accumulated ``(A^T A, A^T b)`` of the gradient design."""
-        values_gram, values_rhs = self.values.result()
+        # The rank-k updates fill the upper triangle of a Fortran-ordered
+        # matrix, and they will go on doing so: mirroring it in place leaves
+        # them unchanged and gives the symmetric matrix, whose transpose is
+        # C-ordered, without a copy (the copy took 1.1 s at degree 18).
+        (values_gram,) = self.values.grams
+        values_gram = mirror_upper(values_gram).T
+        values_rhs = self.values.rhs
         n_values, n_terms = self.maps.n_values, self.n_terms
-        if values_rhs.ndim == 1:  # nothing accumulated yet
+        if values_rhs is None:  # nothing accumulated yet
             values_rhs = np.zeros((values_gram.shape[0], len(self.maps.maps_t)))
-        G = np.ascontiguousarray(values_gram[:n_values, :n_values])
+        G = values_gram[:n_values, :n_values]
+        if self.extra_variables.size:
+            G = np.ascontiguousarray(G)
         gram = np.zeros((self.n_columns, self.n_columns))
         rhs = np.zeros(self.n_columns)
         basis = gram[:n_terms, :n_terms]
+        GT = np.empty((n_values, n_terms))
+        # By blocks of rows: the products' temporaries then stay in cache and
+        # are reused from the heap, where whole-matrix ones were fresh pages
+        # each time (cProfile at degree 14: 1.0 s for this method with
+        # whole-matrix products, 0.26 s by blocks of 128 rows; degree 18: 8.6
+        # and 3.8 s).
+        blocks = [slice(start, start + RESULT_ROWS) for start in range(0, n_terms, RESULT_ROWS)]
         for i, T_t in enumerate(self.maps.maps_t):
             if T_t.nnz == 0:
                 continue
-            GT = np.ascontiguousarray((T_t @ G).T)  # G T_i, G symmetric
-            basis += T_t @ GT
+            parts = [T_t[rows] for rows in blocks]
+            for rows, part in zip(blocks, parts):
+                _transpose_into(part @ G, GT[:, rows])  # G T_i, G symmetric
+            for rows, part in zip(blocks, parts):
+                basis[rows] += part @ GT
             rhs[:n_terms] += T_t @ values_rhs[:n_values, i]
         for e, i in enumerate(self.extra_variables):
             column = n_terms + e
@@ -85,3 +106,18 @@ class FactoredNormalEquations:
             rhs[column] = values_rhs[n_values + e, i]
         # The sparse products round the two triangles differently: keep one.
         return mirror_upper(gram), rhs
+
+
+def _transpose_into(a, out):
+    """``out[...] = a.T``, tile by tile.
+
+    ``np.ascontiguousarray(a.T)`` reads across the cache: 1.9 s for a
+    7 314 x 5 985 matrix, against 0.15 s by tiles (as in
+    :func:`~sk_hamiltonian._solvers.mirror_upper`; one timing each).
+    """
+    rows, columns = a.shape
+    for start in range(0, rows, MIRROR_TILE):
+        for first in range(0, columns, MIRROR_TILE):
+            out[first:first + MIRROR_TILE, start:start + MIRROR_TILE] = (
+                a[start:start + MIRROR_TILE, first:first + MIRROR_TILE].T)
+    return out

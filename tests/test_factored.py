@@ -11,7 +11,7 @@ import warnings
 import numpy as np
 import pytest
 
-from sk_hamiltonian import DerivativeTransformer, HamiltonianRegressor
+from sk_hamiltonian import DerivativeTransformer, HamiltonianRegressor, _factored
 from sk_hamiltonian._factored import FactoredNormalEquations
 from sk_hamiltonian._solvers import NormalEquations
 from sk_hamiltonian._space import ModelSpace, index_set
@@ -94,6 +94,18 @@ def test_factored_normal_equations_equal_the_grouped_ones(layout, params):
     assert relative(rhs, expected_rhs) < ROUND_OFF
     assert np.array_equal(gram, gram.T)
     assert factored.n_rows == data.n_rows(model.fit_on) * 4
+
+
+def test_blocks_and_tiles_of_the_maps_products_cover_every_entry(layout, monkeypatch):
+    # Blocks of 7 rows and tiles of 6: the last of each is partial.
+    monkeypatch.setattr(_factored, "RESULT_ROWS", 7)
+    monkeypatch.setattr(_factored, "MIRROR_TILE", 6)
+    model = HamiltonianRegressor(degree=5, solver="normal").fit(layout)
+    data = model._training_data(layout, None, None, reset=False)
+    _, (gram, rhs), (expected_gram, expected_rhs) = _both(model, data)
+    assert model.n_terms_ % 7 and model._space.derivative_maps().n_values % 6
+    assert relative(gram, expected_gram) < ROUND_OFF
+    assert relative(rhs, expected_rhs) < ROUND_OFF
 
 
 def test_factored_route_only_where_it_costs_less(layout):
