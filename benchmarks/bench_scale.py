@@ -21,8 +21,9 @@ J = 2 intervals per trajectory):
   n = 14, for the default solver ("normal" at these sizes), at n = 14 the
   sketch-preconditioned solver and, at n = 10, the conjugate-gradient
   solver with its closed-form preconditioner; the cost of one CG iteration against the
-  Gram matrix per state at n = 14 and n = 18 (how many iterations CG may take
-  to break even), and its iteration count at n = 10;
+  normal equations per state, as ``"normal"`` accumulates them (factored),
+  at n = 14 and n = 18 (how many iterations CG may take to break even), and
+  its iteration count at n = 10;
 - scaling: fit time against the number of samples and against the number of
   terms, on log-log axes with fitted slopes.
 
@@ -32,7 +33,7 @@ of issue 19 are ratios to ``A.T @ A`` on both cores of a 2-core machine);
 ``--quick`` skips the compile group and the agreement rows.
 ``--paper-n18`` instead runs the paper's largest case alone (n = 18,
 M = 60 000) with all cores and reports its time and peak memory, for each
-solver of ``--n18-solvers`` (default ``auto``; e.g. ``auto normal`` side by
+solver of ``--n18-solvers`` (default ``auto``; e.g. ``auto sketch`` side by
 side, with the agreement of their coefficients).
 
 Outputs, in ``--output`` (default ``benchmarks/results/``): ``scale.csv``
