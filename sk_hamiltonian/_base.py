@@ -865,8 +865,7 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
         return NormalEquations(self._n_unknowns(), self._column_groups())
 
     def _factored_maps(self):
-        """The design's gradient maps where its normal equations are factored (see
-        :mod:`sk_hamiltonian._factored`), else None (here: never)."""
+        """The maps of a design whose normal equations are factored (:mod:`._factored`), or None."""
         return None
 
     def _normal_blocks(self, data, accumulator):

@@ -11,8 +11,8 @@ and the samples are visited once, by one rank-k update of ``B^T B``, instead of
 once per variable (:class:`~sk_hamiltonian._solvers.NormalEquations` with the
 groups of :func:`~sk_hamiltonian._design.column_groups`). The maps ``T_i`` are
 sparse (at most ``degree / 2 + 1`` entries per function), so applying them
-costs ``O(n_terms * n_values)`` per entry of a column: small against the
-samples' pass.
+costs about ``n_terms * n_values * degree`` multiply-adds per variable, once:
+small against the samples' pass.
 
 Columns besides the basis (the friction unknowns, each in the rows of one
 variable) ride along as extra columns of ``B``.
@@ -45,7 +45,7 @@ class FactoredNormalEquations:
     def __init__(self, maps, extra_variables=()):
         self.maps = maps
         self.extra_variables = np.asarray(extra_variables, dtype=np.intp)
-        self.n_terms = maps.maps_t[0].shape[0] if maps.maps_t else 0
+        self.n_terms = maps.n_terms
         self.n_columns = self.n_terms + self.extra_variables.size
         self.values = NormalEquations(maps.n_values + self.extra_variables.size)
 

@@ -44,6 +44,8 @@ class DerivativeMaps:
         included.
     n_values : int
         Functions of the value basis.
+    n_terms : int
+        Functions of the mapped space.
     """
 
     def __init__(self, space):
@@ -66,7 +68,7 @@ class DerivativeMaps:
             reached, index = np.zeros((0, n_states), dtype=np.intp), np.zeros(0, np.intp)
         entries, terms = np.concatenate(entries or [[]]), np.concatenate(terms or [[]])
         variables = np.concatenate(variables or [[]])
-        self.n_values = reached.shape[0]
+        self.n_values, self.n_terms = reached.shape[0], n_terms
         powers = np.where(space.periodic, fourier_frequency(reached), reached)
         self.value_space = type(space)(space.domain, powers, space.periodic)
         self.maps_t = []
