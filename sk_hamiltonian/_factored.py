@@ -11,7 +11,7 @@ and the samples are visited once, by one rank-k update of ``B^T B``, instead of
 once per variable (:class:`~sk_hamiltonian._solvers.NormalEquations` with the
 groups of :func:`~sk_hamiltonian._design.column_groups`). The maps ``T_i`` are
 sparse (at most ``degree / 2 + 1`` entries per function), so applying them
-costs about ``n_terms * n_values * degree`` multiply-adds per variable, once:
+costs about ``n_terms * n_values * degree / 2`` multiply-adds per variable, once:
 small against the samples' pass.
 
 Columns besides the basis (the friction unknowns, each in the rows of one
