@@ -113,9 +113,11 @@ def test_factored_route_only_where_it_costs_less(layout):
     maps = dense._space.derivative_maps()
     assert maps.n_values ** 2 < sum(g.size**2 for g in dense._column_groups())
     assert isinstance(dense._normal_accumulator(), FactoredNormalEquations)
-    # Two separate pairs: each group holds a sixth of the terms, the value
-    # basis about all of them.
+    # Momenta alone, positions coupled in one pair: groups of 4, 4, 10 and
+    # 10 functions (232 products per row) against a value basis of 16 (256).
     chain = HamiltonianRegressor(degree=4, separable=True, couplings=[(2, 3)]).fit(layout)
+    maps = chain._space.derivative_maps()
+    assert maps.n_values ** 2 > sum(g.size**2 for g in chain._column_groups())
     assert type(chain._normal_accumulator()) is NormalEquations
 
 
