@@ -447,8 +447,8 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
         return LeastSquaresProblem(
             lambda grouped=False: self._design_blocks(data, grouped=grouped),
             lambda: self._design_operator(data),
+            lambda progress=None: self._accumulate(data, progress).result(),
             self._n_unknowns(), self._n_nonnegative(), groups=self._column_groups(),
-            normal_equations=lambda progress=None: self._accumulate(data, progress).result(),
         )
 
     def _accumulate(self, data, progress=None, accumulator=None):

@@ -67,15 +67,12 @@ class FactoredNormalEquations:
 
     def result(self):
         """The accumulated ``(A^T A, A^T b)`` of the gradient design."""
-        # The rank-k updates fill the upper triangle of a Fortran-ordered
-        # matrix, and they will go on doing so: mirroring it in place leaves
-        # them unchanged and gives the symmetric matrix, whose transpose is
-        # C-ordered, without a copy (the copy took 1.1 s at degree 18).
-        (values_gram,) = self.values.grams
-        values_gram = mirror_upper(values_gram).T
-        values_rhs = self.values.rhs
+        values_gram, values_rhs = self.values.result()
+        # Symmetric and Fortran-ordered: its transpose is the same matrix in
+        # C order, which the sparse products read without a copy.
+        values_gram = values_gram.T
         n_values, n_terms = self.maps.n_values, self.n_terms
-        if values_rhs is None:  # nothing accumulated yet
+        if values_rhs.ndim == 1:  # nothing accumulated yet
             values_rhs = np.zeros((values_gram.shape[0], len(self.maps.maps_t)))
         G = values_gram[:n_values, :n_values]
         if self.extra_variables.size:

@@ -4,8 +4,8 @@ Every fit of the package is ``min_c ||A c - b||``, possibly over a subspace of
 the coefficients. Three parts, each replaceable on its own:
 
 - :class:`LeastSquaresProblem`, the design of one fit in the forms the
-  solvers take (row blocks, grouped blocks for the normal equations or a
-  sketch, an operator, and its normal equations by the cheapest route);
+  solvers take (row blocks, grouped blocks for a sketch, an operator, and
+  its normal equations by the estimator's cheapest route);
 - a *column solver* (:func:`column_solver`, :func:`accumulated_solver`):
   ``solve(keep, basis=None) -> (u, cond, rank)``, the least-squares solution
   over the columns of the boolean mask ``keep``, or over the coefficients
@@ -45,7 +45,6 @@ from scipy import sparse
 from sklearn.exceptions import ConvergenceWarning
 
 from ._solvers import (
-    NormalEquations,
     solve_dense,
     solve_iterative,
     solve_nonnegative_tail,
@@ -60,7 +59,7 @@ STLSQ_MAX_ITER = 25
 
 
 class LeastSquaresProblem:
-    """The design of one fit, in the three forms the solvers take.
+    """The design of one fit, in the forms the solvers take.
 
     Parameters
     ----------
@@ -71,35 +70,27 @@ class LeastSquaresProblem:
     operator : callable
         ``operator()``: the design as a
         :class:`~sk_hamiltonian._design_operator.DesignOperator`.
+    normal_equations : callable
+        ``normal_equations(progress=None) -> (A^T A, A^T b)``, by the
+        estimator's cheapest route (grouped blocks, or :mod:`._factored`);
+        ``progress(k, n_rows)`` after each block.
     n_columns : int
         Columns of the design (unknowns).
     n_nonnegative : int, default=0
         How many of the last unknowns are constrained to be ``>= 0``.
     groups : list of ndarray of int, default=None
-        The columns of each group of ``blocks(grouped=True)``, as the normal
-        equations and the sketch accumulate them; None: one group of every
-        column.
-    normal_equations : callable, default=None
-        ``normal_equations(progress=None) -> (A^T A, A^T b)``, where the
-        design has a cheaper route to them (:mod:`._factored`); None: from
-        ``blocks(grouped=True)``.
+        The columns of each group of ``blocks(grouped=True)``, as the sketch
+        accumulates them; None: one group of every column.
     """
 
-    def __init__(self, blocks, operator, n_columns, n_nonnegative=0, groups=None,
-                 normal_equations=None):
+    def __init__(self, blocks, operator, normal_equations, n_columns, n_nonnegative=0,
+                 groups=None):
         self.blocks = blocks
         self.operator = operator
+        self.normal_equations = normal_equations
         self.n_columns = n_columns
         self.n_nonnegative = n_nonnegative
         self.groups = groups
-        self._normal_equations = normal_equations
-
-    def normal_equations(self, progress=None):
-        """``(A^T A, A^T b)``; ``progress(k, n_rows)`` after each block."""
-        if self._normal_equations is not None:
-            return self._normal_equations(progress)
-        return NormalEquations(self.n_columns, self.groups).add_blocks(
-            self.blocks(grouped=True), progress=progress).result()
 
     def column_norms(self, basis=None):
         """Norms of the columns of ``A`` (or ``A @ basis``), from one pass over its blocks."""

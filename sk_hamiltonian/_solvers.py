@@ -179,8 +179,13 @@ def stack_blocks(blocks, n_columns):
 
 # ---------------------------------------------------------------- normal
 def symmetric_from_upper(upper):
-    """The symmetric matrix whose upper triangle is ``upper`` (a new array)."""
-    return mirror_upper(np.array(upper, dtype=float, order="C"))
+    """The symmetric matrix whose upper triangle is ``upper`` (a new array, in ``upper``'s order).
+
+    A copy in the same memory order, then the mirror: a copy of the
+    Fortran-ordered Gram matrices into C order read across the cache, twice
+    the time (0.34 against 0.17 s at 5 985 columns, best of five each).
+    """
+    return mirror_upper(np.array(upper, dtype=float, order="K"))
 
 
 # Rows of the tiles mirror_upper copies: a tile and its transpose stay in cache.
