@@ -67,6 +67,9 @@ class FactoredNormalEquations:
 
     def result(self):
         """The accumulated ``(A^T A, A^T b)`` of the gradient design."""
+        # A copy of the value Gram matrix (0.02 to 0.04 s at degree 14, about
+        # 0.5 s at degree 18, against mirroring the accumulator's own state in
+        # place): this method leaves the accumulator as it was.
         values_gram, values_rhs = self.values.result()
         # Symmetric and Fortran-ordered: its transpose is the same matrix in
         # C order, which the sparse products read without a copy.
@@ -85,7 +88,7 @@ class FactoredNormalEquations:
         # are reused from the heap, where whole-matrix ones were fresh pages
         # each time (cProfile at degree 14: 1.0 s for this method with
         # whole-matrix products, 0.26 s by blocks of 128 rows; degree 18: 8.6
-        # and 3.8 s).
+        # and 3.8 s; both before the copy above).
         blocks = [slice(start, start + RESULT_ROWS) for start in range(0, n_terms, RESULT_ROWS)]
         for i, T_t in enumerate(self.maps.maps_t):
             if T_t.nnz == 0:
