@@ -135,6 +135,81 @@ def test_coefficients_changed_in_place_are_seen():
     np.testing.assert_allclose(second, expected, rtol=1e-12, atol=1e-12)
 
 
+def test_lanes_split_batches_into_equal_passes():
+    from sk_hamiltonian._kernels import MAX_LANES, _lanes
+
+    for n in [1, 15, 16, MAX_LANES, MAX_LANES + 1, 1000, 4 * MAX_LANES]:
+        lanes = _lanes(n)
+        n_passes = -(-n // lanes)
+        assert lanes <= MAX_LANES
+        assert n_passes == -(-n // MAX_LANES)  # no more passes than needed
+        assert n_passes * lanes - n < n_passes  # the last pass short by less than one per pass
+
+
+def test_children_by_parent_groups_every_node_under_its_parent():
+    from sk_hamiltonian._kernels.tree import children_by_parent, tree_arrays
+
+    space = _space(*SPACES[4])
+    tree, _ = tree_arrays(space)
+    level_start, level_parent, node_counts = tree[6], tree[7], tree[9]
+    child_order, child_start, child_offset = children_by_parent(tree)
+    for L in range(node_counts.size - 1):
+        parent = level_parent[level_start[L]:level_start[L + 1]]
+        order = child_order[level_start[L]:level_start[L + 1]]
+        starts = child_start[child_offset[L]:child_offset[L + 1]]
+        assert np.array_equal(np.sort(order), np.arange(parent.size))
+        assert starts[0] == 0 and starts[-1] == parent.size
+        for P in range(node_counts[L + 1]):
+            assert np.all(parent[order[starts[P]:starts[P + 1]]] == P)
+
+
+@needs_numba
+@pytest.mark.parametrize("spec", SPACES, ids=lambda s: f"m{s[0]}n{s[1]}{s[3]}{sum(s[2])}p")
+def test_batches_in_lanes_agree(spec):
+    # Around the batch sizes where the lanes start, fill a pass, and leave a
+    # short last pass (129: passes of 65 and 64, the last lane repeated).
+    from sk_hamiltonian._kernels import LANE_ROWS, MAX_LANES, _contract_in_lanes, _in_lanes
+
+    space = _space(*spec)
+    coef = np.random.default_rng(2).standard_normal(space.n_terms)
+    for n in [LANE_ROWS - 1, LANE_ROWS, MAX_LANES + 1]:
+        X = _states(space, n, seed=n)
+        results = {}
+        for kernels in ("numpy", "numba"):
+            with config_context(kernels=kernels):
+                results[kernels] = [space.value_dot(X, coef), space.gradient_dot(X, coef),
+                                    space.gradient_dot(X, coef[:, None])]
+        # The lanes themselves, also on the spaces that take flat products
+        # (a few terms): one variable (no level above the leaves), Fourier only.
+        value, grad, _ = _contract_in_lanes(space, X, coef, 1)
+        results["lanes"] = [value[:, 0], grad[:, :, 0], grad,
+                            _contract_in_lanes(space, X, coef, 0)[0][:, 0]]
+        results["numpy"].append(results["numpy"][0])
+        for a, b in zip(results["numpy"], results["numba"]):
+            assert a.shape == b.shape
+            np.testing.assert_allclose(b, a, rtol=0, atol=1e-12 * np.abs(a).max())
+        for a, b in zip(results["numpy"], results["lanes"]):
+            assert a.shape == b.shape
+            np.testing.assert_allclose(b, a, rtol=0, atol=1e-12 * np.abs(a).max())
+        expected = n >= LANE_ROWS and space._flat(1, kernels="numba") is None
+        assert _in_lanes(space, coef, 1, n) == expected
+
+
+@needs_numba
+def test_lanes_see_coefficients_changed_in_place():
+    space = _space(*SPACES[1])
+    X = _states(space, 40)
+    coef = np.ones(space.n_terms)
+    with config_context(kernels="numba"):
+        first = space.gradient_dot(X, coef)
+        coef[5] = -4.0
+        second = space.gradient_dot(X, coef)
+    with config_context(kernels="numpy"):
+        expected = space.gradient_dot(X, coef)
+    assert not np.allclose(first, second)
+    np.testing.assert_allclose(second, expected, rtol=1e-12, atol=1e-12)
+
+
 def test_one_variable_results_outlive_the_next_call():
     # The numpy contraction of a 1-D space once returned a view of its
     # workspace, which the next call overwrote.

@@ -10,6 +10,9 @@ path runs exactly as before.
   ``value_dot``, ``gradient_dot`` and ``hessian_dot`` return);
 - :func:`field`: a Hamiltonian's vector field at many states (what
   ``predict`` returns), the structure applied in the same compiled pass;
+- both take batches of :data:`LANE_ROWS` states or more (value and gradient
+  of one scalar) through the tree together (:mod:`._lanes_jit`), fewer
+  state by state (:mod:`._jit`);
 - :mod:`.simulate`: whole fixed-step integrations as compiled loops;
 - :mod:`.threads`: BLAS threads chosen by problem size.
 """
@@ -25,6 +28,14 @@ _local = threading.local()
 # Rows of a batch per thread from which the evaluation runs on every core
 # (below, handing the work to threads costs more than it saves).
 PARALLEL_ROWS = 256
+# States from which a batch goes through the tree in lanes (_lanes_jit), and
+# the most states per pass. Measured on the degree-15 model of
+# benchmarks/bench_scale.py (3 875 terms, the gradient, one thread): per
+# state 5.4 us state by state; in lanes 4.2 us at 16 states per pass, 2.3 at
+# 32, 1.8 at 64, 1.6 at 128, and no faster beyond (the partial sums of a
+# pass outgrow the cache).
+LANE_ROWS = 16
+MAX_LANES = 128
 
 
 def numba_available():
@@ -73,12 +84,7 @@ def bound_kernels(space, coef):
       dx_j) and its coefficients (n_functions, K). Orders contracted by the
       tree get empty arrays.
     """
-    tree = space.__dict__.get("_kernel_tree")
-    if tree is None:
-        from .tree import tree_arrays
-
-        tree = space.__dict__["_kernel_tree"] = tree_arrays(space)
-    arrays, order = tree
+    arrays, order, _ = _tree(space)
 
     def bind(coef):
         coef2 = np.asarray(coef, dtype=float).reshape(space.n_terms, -1)
@@ -86,6 +92,44 @@ def bound_kernels(space, coef):
 
     bound, flat = space._binding("jit", coef, bind)
     return arrays, bound, flat
+
+
+def _tree(space):
+    """``(tree_arrays, leaf order, children_by_parent)`` of ``space``, built once (not pickled)."""
+    tree = space.__dict__.get("_kernel_tree")
+    if tree is None:
+        from .tree import children_by_parent, tree_arrays
+
+        arrays, order = tree_arrays(space)
+        tree = space.__dict__["_kernel_tree"] = (arrays, order, children_by_parent(arrays))
+    return tree
+
+
+def _in_lanes(space, coef, order, n):
+    """Whether :mod:`._lanes_jit` contracts these ``n`` states (see :data:`LANE_ROWS`).
+
+    For the value and gradient of one scalar, where the space takes the
+    tree (not flat products).
+    """
+    return (n >= LANE_ROWS and order <= 1 and space.n_terms > 0
+            and (np.ndim(coef) == 1 or np.shape(coef)[1] == 1)
+            and space._flat(order, kernels="numba") is None)
+
+
+def _lanes(n):
+    """States per pass for ``n`` states: at most MAX_LANES, in passes of equal size."""
+    n_passes = -(-n // MAX_LANES)
+    return -(-n // n_passes)
+
+
+def _lane_kernels(space, coef):
+    """``(compiled module, tree, children, leaf_coef)``: the coefficients in leaf order, cached."""
+    arrays, order, children = _tree(space)
+    leaf_coef = space._binding(
+        "lanes", coef, lambda coef: np.ascontiguousarray(np.asarray(coef, dtype=float).reshape(-1)[order]))
+    from . import _lanes_jit
+
+    return _lanes_jit, arrays, children, leaf_coef
 
 
 def _bind_tree(arrays, order, coef2):
@@ -139,6 +183,8 @@ def contract(space, X, coef, order):
     grad : ndarray of shape (n_samples, n_states, K) or None (order 0)
     hess : ndarray of shape (n_samples, n_states, n_states, K) or None (order < 2)
     """
+    if _in_lanes(space, coef, order, X.shape[0]):
+        return _contract_in_lanes(space, X, coef, order)
     _jit, tree, bound, flat, X = _prepared(space, X, coef)
     n, m = X.shape
     K = bound.shape[1]
@@ -174,16 +220,40 @@ def field(space, X, coef, damping=None):
     -------
     dXdt : ndarray of shape (n_samples, n_states)
     """
-    _jit, tree, bound, flat, X = _prepared(space, X, coef)
     n, m = X.shape
     gamma = np.zeros(m // 2) if damping is None else np.ascontiguousarray(damping, dtype=float)
     out = np.empty((n, m))
+    if _in_lanes(space, coef, 1, n):
+        _lanes_jit, tree, children, leaf_coef = _lane_kernels(space, coef)
+        X = np.ascontiguousarray(X, dtype=float)
 
-    def part(rows):
-        _jit.fields(0, X[rows], tree, bound, flat, gamma, out[rows], *_work(tree, 1, m))
+        def part(rows):
+            _lanes_jit.fields(X[rows], tree, children, leaf_coef, gamma,
+                              _lanes(rows.stop - rows.start), out[rows])
+    else:
+        _jit, tree, bound, flat, X = _prepared(space, X, coef)
+
+        def part(rows):
+            _jit.fields(0, X[rows], tree, bound, flat, gamma, out[rows], *_work(tree, 1, m))
 
     in_threads(part, n, PARALLEL_ROWS)
     return out
+
+
+def _contract_in_lanes(space, X, coef, order):
+    """:func:`contract` by :mod:`._lanes_jit` (see :func:`_in_lanes`)."""
+    _lanes_jit, tree, children, leaf_coef = _lane_kernels(space, coef)
+    X = np.ascontiguousarray(X, dtype=float)
+    n, m = X.shape
+    value = np.empty(n)
+    grad = np.empty((n, m)) if order >= 1 else np.empty((0, m))
+
+    def part(rows):
+        _lanes_jit.evaluate(X[rows], tree, children, leaf_coef, order, _lanes(rows.stop - rows.start),
+                            value[rows], grad[rows] if order >= 1 else grad)
+
+    in_threads(part, n, PARALLEL_ROWS)
+    return value[:, None], (grad[:, :, None] if order >= 1 else None), None
 
 
 def _prepared(space, X, coef):

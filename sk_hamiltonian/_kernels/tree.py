@@ -102,3 +102,26 @@ def _by_largest_child(ids, child_keys):
     new = np.empty(n_nodes, dtype=np.intp)
     new[ranking] = np.arange(n_nodes)
     return new[ids], largest[ranking]
+
+
+def children_by_parent(tree):
+    """Each level's nodes grouped by parent, for the kernels of :mod:`._lanes_jit`.
+
+    Returns
+    -------
+    children : tuple
+        ``(child_order, child_start, child_offset)``: level ``L``'s nodes in
+        the order of their parents are
+        ``child_order[level_start[L]:level_start[L + 1]]``, and parent ``P``'s
+        are entries ``child_start[child_offset[L] + P]`` up to the next.
+    """
+    level_start, level_parent, node_counts = tree[6], tree[7], tree[9]
+    orders, starts, offsets = [], [], [0]
+    for L in range(node_counts.size - 1):
+        parent = level_parent[level_start[L]:level_start[L + 1]]
+        order = np.argsort(parent, kind="stable")
+        orders.append(order)
+        starts.append(np.searchsorted(parent[order], np.arange(node_counts[L + 1] + 1)))
+        offsets.append(offsets[-1] + starts[-1].size)
+    cat = np.concatenate if orders else (lambda _: np.zeros(0, dtype=INDEX))
+    return cat(orders).astype(INDEX), cat(starts).astype(INDEX), np.array(offsets, dtype=INDEX)

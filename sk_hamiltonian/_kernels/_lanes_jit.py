@@ -1,0 +1,217 @@
+"""Compiled (numba) contraction of many states at once; imported only when numba is.
+
+The kernels of :mod:`._jit` contract one state at a time and vectorize over
+the nodes of the prefix tree; every product then loads and stores a partial
+sum, and the short sums of the upper levels do not vectorize at all. Here a
+block of ``S`` states (the *lanes*) goes through the tree together, the
+states innermost: each coefficient, table entry or partial sum of a node is a
+row of ``S`` numbers, and every sum over children is a loop over the lanes,
+which the compiler vectorizes whatever the shape of the tree.
+
+Two things make it vectorize, both measured (``benchmarks/bench_scale.py``):
+
+- the work arrays are allocated inside the compiled call, so the compiler
+  knows they alias nothing (given as arguments, they did not vectorize, and a
+  batch ran at the speed of the state-by-state kernel);
+- the lane count is a run-time value (a compile-time one was unrolled into
+  scalar code).
+
+Results are the value and the gradient (``R = 1`` or ``2`` table rows) of a
+scalar ``sum_j coef[j] phi_j``: what ``predict``, ``hamiltonian`` and
+``gradient`` take for batches. The Hessian, several targets and small
+batches stay with :mod:`._jit`.
+
+A *tree* is the tuple of :func:`.tree.tree_arrays`; *children* the tuple of
+:func:`.tree.children_by_parent`; ``leaf_coef`` the coefficients in the
+tree's leaf order.
+"""
+
+import math
+
+import numpy as np
+from numba import njit
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _tables(X, first, n, family, degree, slope, offset, T, w):
+    """``T[i, c, r, s]``: ``slope**r`` times the r-th derivative of column c of variable i at lane s.
+
+    Lanes past the ``n`` states from ``first`` repeat the last state (their
+    results are not stored).
+    """
+    S = T.shape[3]
+    R = T.shape[2]
+    m = X.shape[1]
+    for i in range(m):
+        s_i = slope[i]
+        for s in range(S):
+            w[s] = X[first + min(s, n - 1), i] * s_i + offset[i]
+        n_i = degree[i]
+        if family[i] == 0:
+            # Legendre: the three-term recurrence and P'_{k+1} = P'_{k-1} +
+            # (2k + 1) P_k (with the chain-rule factor), as in _jit.fill_tables.
+            for s in range(S):
+                T[i, 0, 0, s] = 1.0
+            if n_i >= 1:
+                for s in range(S):
+                    T[i, 1, 0, s] = w[s]
+            for k in range(1, n_i):
+                a = (2 * k + 1) / (k + 1)
+                b = k / (k + 1)
+                for s in range(S):
+                    T[i, k + 1, 0, s] = a * w[s] * T[i, k, 0, s] - b * T[i, k - 1, 0, s]
+            if R > 1:
+                for s in range(S):
+                    T[i, 0, 1, s] = 0.0
+                if n_i >= 1:
+                    for s in range(S):
+                        T[i, 1, 1, s] = s_i
+                for k in range(1, n_i):
+                    f = (2 * k + 1) * s_i
+                    for s in range(S):
+                        T[i, k + 1, 1, s] = T[i, k - 1, 1, s] + f * T[i, k, 0, s]
+        else:
+            for s in range(S):
+                T[i, 0, 0, s] = 1.0
+                if R > 1:
+                    T[i, 0, 1, s] = 0.0
+            for k in range(1, n_i + 1):
+                for s in range(S):
+                    angle = k * w[s]
+                    c = math.cos(angle)
+                    sn = math.sin(angle)
+                    T[i, 2 * k - 1, 0, s] = c
+                    T[i, 2 * k, 0, s] = sn
+                    if R > 1:
+                        T[i, 2 * k - 1, 1, s] = -(k * sn) * s_i
+                        T[i, 2 * k, 1, s] = (k * c) * s_i
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _contract(T, tree, children, leaf_coef, leaf, cur, nxt):
+    """The root's value (and gradient) at the lanes: (1 + m (R - 1), S).
+
+    Leaves: each prefix sums its functions' coefficients times the last
+    variable's table (value and, R = 2, its derivative). Level by level up,
+    each parent sums its children times the table of its variable: the value,
+    the derivative along that variable, and the derivatives carried from
+    below. A node of prefix length ``k`` carries the value (slot 0) and
+    ``d/dx_j`` for ``j >= k`` (slot ``1 + j - k``). The first term of every
+    sum is stored rather than added to zeros (a fifth fewer stores).
+    """
+    leaf_start, leaf_column = tree[4], tree[5]
+    level_start, level_key, node_counts = tree[6], tree[8], tree[9]
+    child_order, child_start, child_offset = children
+    m = T.shape[0]
+    R = T.shape[2]
+    S = T.shape[3]
+    last = m - 1
+    for p in range(leaf_start.shape[0] - 1):
+        j0 = leaf_start[p]
+        c = leaf_column[j0]
+        w = leaf_coef[j0]
+        for r in range(R):
+            for s in range(S):
+                leaf[p, r, s] = w * T[last, c, r, s]
+        for j in range(j0 + 1, leaf_start[p + 1]):
+            c = leaf_column[j]
+            w = leaf_coef[j]
+            if R == 1:
+                for s in range(S):
+                    leaf[p, 0, s] += w * T[last, c, 0, s]
+            else:
+                for s in range(S):
+                    leaf[p, 0, s] += w * T[last, c, 0, s]
+                    leaf[p, 1, s] += w * T[last, c, 1, s]
+    src = leaf
+    n_in = R
+    for L in range(m - 1):
+        v = m - 2 - L  # the variable this level sums (prefixes of length v + 1 into v)
+        n_out = 1 if R == 1 else 2 + (n_in - 1)
+        dst = cur if L % 2 == 0 else nxt
+        order = child_order[level_start[L]:level_start[L + 1]]
+        keys = level_key[level_start[L]:level_start[L + 1]]
+        starts = child_start[child_offset[L]:child_offset[L + 1]]
+        for P in range(node_counts[L + 1]):
+            ch = order[starts[P]]
+            c = keys[ch]
+            for s in range(S):
+                dst[P, 0, s] = src[ch, 0, s] * T[v, c, 0, s]
+            if R > 1:
+                for s in range(S):
+                    dst[P, 1, s] = src[ch, 0, s] * T[v, c, 1, s]
+                for t in range(1, n_in):
+                    for s in range(S):
+                        dst[P, t + 1, s] = src[ch, t, s] * T[v, c, 0, s]
+            for j in range(starts[P] + 1, starts[P + 1]):
+                ch = order[j]
+                c = keys[ch]
+                if R == 1:
+                    for s in range(S):
+                        dst[P, 0, s] += src[ch, 0, s] * T[v, c, 0, s]
+                else:
+                    # The value's two products share their loads.
+                    for s in range(S):
+                        x = src[ch, 0, s]
+                        t0 = T[v, c, 0, s]
+                        dst[P, 0, s] += x * t0
+                        dst[P, 1, s] += x * T[v, c, 1, s]
+                        dst[P, 2, s] += src[ch, 1, s] * t0
+                    for t in range(2, n_in):
+                        for s in range(S):
+                            dst[P, t + 1, s] += src[ch, t, s] * T[v, c, 0, s]
+        src = dst
+        n_in = n_out
+    return src[0]
+
+
+@njit(cache=True, nogil=True)
+def evaluate(X, tree, children, leaf_coef, order, lanes, value, grad):
+    """Value (n,) and, ``order`` 1, gradient (n, m) of ``sum_j coef[j] phi_j`` at the rows of ``X``.
+
+    In blocks of ``lanes`` states (the last block repeats its last state).
+    """
+    n, m = X.shape
+    R = order + 1
+    T, w, leaf, cur, nxt = _work(tree, m, R, lanes)
+    for first in range(0, n, lanes):
+        count = min(lanes, n - first)
+        _tables(X, first, count, tree[0], tree[1], tree[2], tree[3], T, w)
+        root = _contract(T, tree, children, leaf_coef, leaf, cur, nxt)
+        for s in range(count):
+            value[first + s] = root[0, s]
+            if order >= 1:
+                for i in range(m):
+                    grad[first + s, i] = root[1 + i, s]
+
+
+@njit(cache=True, nogil=True)
+def fields(X, tree, children, leaf_coef, gamma, lanes, out):
+    """The vector field ``(J^{-1} - Gamma) grad H`` at the rows of ``X`` into ``out``, by blocks of ``lanes``."""
+    n, m = X.shape
+    d = m // 2
+    T, w, leaf, cur, nxt = _work(tree, m, 2, lanes)
+    for first in range(0, n, lanes):
+        count = min(lanes, n - first)
+        _tables(X, first, count, tree[0], tree[1], tree[2], tree[3], T, w)
+        root = _contract(T, tree, children, leaf_coef, leaf, cur, nxt)
+        for s in range(count):
+            for i in range(d):
+                out[first + s, i] = -root[1 + d + i, s] - gamma[i] * root[1 + i, s]
+                out[first + s, d + i] = root[1 + i, s]
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _work(tree, m, R, lanes):
+    """Fresh work arrays (allocated here, so that the compiler sees they alias nothing).
+
+    Every entry is written before it is read: the tables up to each
+    variable's degree, the nodes' first terms by assignment.
+    """
+    n_prefixes = tree[4].shape[0] - 1
+    n_parents = 1
+    for L in range(1, tree[9].shape[0]):
+        n_parents = max(n_parents, tree[9][L])
+    return (np.empty((m, tree[10], R, lanes)), np.empty(lanes), np.empty((n_prefixes, R, lanes)),
+            np.empty((n_parents, 1 + m * (R - 1), lanes)),
+            np.empty((n_parents, 1 + m * (R - 1), lanes)))
