@@ -141,9 +141,9 @@ def test_lanes_split_batches_into_equal_passes():
     for n in [1, 15, 16, MAX_LANES, MAX_LANES + 1, 1000, 4 * MAX_LANES]:
         lanes = _lanes(n)
         n_passes = -(-n // lanes)
-        assert lanes <= MAX_LANES
+        assert lanes <= MAX_LANES and lanes % 8 == 0
         assert n_passes == -(-n // MAX_LANES)  # no more passes than needed
-        assert n_passes * lanes - n < n_passes  # the last pass short by less than one per pass
+        assert n_passes * lanes - n < 8 * n_passes  # the last pass short by less than 8 per pass
 
 
 def test_children_by_parent_groups_every_node_under_its_parent():
@@ -167,7 +167,7 @@ def test_children_by_parent_groups_every_node_under_its_parent():
 @pytest.mark.parametrize("spec", SPACES, ids=lambda s: f"m{s[0]}n{s[1]}{s[3]}{sum(s[2])}p")
 def test_batches_in_lanes_agree(spec):
     # Around the batch sizes where the lanes start, fill a pass, and leave a
-    # short last pass (129: passes of 65 and 64, the last lane repeated).
+    # short last pass (257: two passes of 136 lanes, 15 of them repeats).
     from sk_hamiltonian._kernels import LANE_ROWS, MAX_LANES, _contract_in_lanes, _in_lanes
 
     space = _space(*spec)

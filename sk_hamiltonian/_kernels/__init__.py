@@ -30,12 +30,13 @@ _local = threading.local()
 PARALLEL_ROWS = 256
 # States from which a batch goes through the tree in lanes (_lanes_jit), and
 # the most states per pass. Measured on the degree-15 model of
-# benchmarks/bench_scale.py (3 875 terms, the gradient, one thread): per
-# state 5.4 us state by state; in lanes 4.2 us at 16 states per pass, 2.3 at
-# 32, 1.8 at 64, 1.6 at 128, and no faster beyond (the partial sums of a
-# pass outgrow the cache).
+# benchmarks/bench_scale.py (3 875 terms, the field of 1 024 states, one
+# thread, best of 25 timings of _lanes_jit.fields and _jit.fields, a scratch
+# script, 2026-11-25): per state 5.2 us state by state; in lanes 3.5 us at
+# 16 states per pass, 2.2 at 32, 1.75 at 64, 1.5 at 128 and 1.4 at 256
+# (1.6-1.7 at 192, 320 and 512).
 LANE_ROWS = 16
-MAX_LANES = 128
+MAX_LANES = 256
 
 
 def numba_available():
@@ -117,9 +118,15 @@ def _in_lanes(space, coef, order, n):
 
 
 def _lanes(n):
-    """States per pass for ``n`` states: at most MAX_LANES, in passes of equal size."""
+    """States per pass for ``n`` states: at most MAX_LANES, in passes of about equal size.
+
+    A multiple of 8 (the last pass repeats a state where that is more than
+    ``n`` needs): rows of any other length end in a scalar remainder and
+    straddle cache lines (measured: 125 lanes ran 1.3 times slower than
+    120 or 128).
+    """
     n_passes = -(-n // MAX_LANES)
-    return -(-n // n_passes)
+    return min(MAX_LANES, 8 * -(-n // (8 * n_passes)))
 
 
 def _lane_kernels(space, coef):
