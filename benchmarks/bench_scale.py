@@ -16,7 +16,8 @@ J = 2 intervals per trajectory):
   a batch of 1 000 (per state), and the explicit products (gradients of every
   basis function, then a matrix product) as the old reference;
 - simulation from u0*: 10 000 RK4 steps, and the cost of one AVF step in RK4
-  steps;
+  steps; and a sweep of 256 initial states near u0* (100 RK4 steps, per
+  state and step);
 - fits (M = 8 000): time of ``fit`` against one ``A.T @ A`` at n = 10 and
   n = 14, for the default solver ("normal" at these sizes), at n = 14 the
   sketch-preconditioned solver and, at n = 10, the conjugate-gradient
@@ -85,12 +86,14 @@ U0 = np.array([0.0, 0.0, np.pi / 6, np.pi / 4])
 
 FULL = dict(
     eval_degree=15, eval_M=3000, batch=1000, rk4_steps=10_000, avf_steps=500,
+    many_states=256, many_steps=100,
     fit_cases=[(10, 8000), (14, 8000)], cg_degree=10, cg_M=8000, iteration_cases=[14, 18],
     iteration_M=1000, samples_degree=8, samples=[1000, 2000, 4000, 8000, 16000],
     terms_M=4000, terms=[4, 6, 8, 10, 12, 14], repeats=3, quick=False,
 )
 QUICK = dict(
     eval_degree=8, eval_M=400, batch=200, rk4_steps=300, avf_steps=50,
+    many_states=32, many_steps=10,
     fit_cases=[(6, 400)], cg_degree=5, cg_M=400, iteration_cases=[8], iteration_M=100,
     samples_degree=4, samples=[200, 400, 800], terms_M=300, terms=[3, 4, 5], repeats=1,
     quick=True,
@@ -211,6 +214,10 @@ def evaluation(cfg, rows):
     t = np.linspace(0, n * DT, n + 1)
     n_avf = cfg["avf_steps"]
     t_avf = np.linspace(0, n_avf * DT, n_avf + 1)
+    # A sweep of initial conditions: many states simulated in one call.
+    n_many, steps_many = cfg["many_states"], cfg["many_steps"]
+    x0_many = U0 + np.random.default_rng(2).uniform(-0.05, 0.05, size=(n_many, 4))
+    t_many = np.linspace(0, steps_many * DT, steps_many + 1)
     results = {}
     for kernels in kernel_paths():
         with config_context(kernels=kernels):
@@ -218,6 +225,7 @@ def evaluation(cfg, rows):
             model.predict(u), model.predict(batch[:300])
             model.simulate(U0, t[:3], method="rk4", max_step=np.inf)
             model.simulate(U0, t_avf[:3], method="avf", max_step=np.inf)
+            model.simulate(x0_many, t_many[:3], method="rk4", max_step=np.inf)
             results[kernels] = dict(
                 one=both(lambda: model.predict(u), 5, 200),
                 kernel=both(lambda: space.gradient_dot(u, model.coef_), 5, 200),
@@ -225,6 +233,7 @@ def evaluation(cfg, rows):
                 batch=[x / cfg["batch"] for x in both(lambda: model.predict(batch), 7, 5)],
                 rk4=both(lambda: model.simulate(U0, t, method="rk4", max_step=np.inf), 1),
                 avf=both(lambda: model.simulate(U0, t_avf, method="avf", max_step=np.inf), 1),
+                many=both(lambda: model.simulate(x0_many, t_many, method="rk4", max_step=np.inf), 1),
                 values=(model.predict(batch), model.simulate(U0, t[:200], method="rk4",
                                                              max_step=np.inf)),
             )
@@ -254,6 +263,11 @@ def evaluation(cfg, rows):
             (avf[0] / n_avf) / (rk4[0] / n), "RK4 steps", target["avf"],
             f"CPU time (wall {(avf[1] / n_avf) / (rk4[1] / n):.3g}); step {DT}, "
             f"{n_avf} AVF steps; one AVF step {avf[0] / n_avf * 1e3:.3g} ms")
+    for kernels, r in results.items():
+        per = n_many * steps_many
+        row(rows, "simulation", f"RK4 of {n_many} states, per state and step [{kernels}]",
+            r["many"][0] / per * 1e6, "us", None,
+            f"{steps_many} steps; CPU time (wall {r['many'][1] / per * 1e6:.3g})")
     row(rows, "evaluation", "explicit products, batch (per state; old path)",
         reference[0] * 1e6, "us", None,
         "gradients of every function, then a matrix product; " + note.format(reference[1] * 1e6))
@@ -272,10 +286,11 @@ import time, numpy as np
 start = time.perf_counter()
 from sk_hamiltonian import HamiltonianRegressor, config_context
 X = np.random.default_rng(0).uniform(-1, 1, size=(300, 4))
-model = HamiltonianRegressor(degree=4, domain=[[-1, 1]] * 4).fit(X, X[:, ::-1])
+# Degree 6: large enough for the tree (and the lanes of batches) on every order.
+model = HamiltonianRegressor(degree=6, domain=[[-1, 1]] * 4).fit(X, X[:, ::-1])
 fitted, cpu = time.perf_counter(), time.process_time()
 with config_context(kernels="numba"):
-    model.predict(X[:1]); model.predict(X); model.hamiltonian(X[:2])
+    model.predict(X[:1]); model.predict(X); model.hamiltonian(X[:2]); model.hamiltonian(X)
     model.simulate(X[0], np.linspace(0, 0.1, 3), method="rk4")
     model.simulate(X[0], np.linspace(0, 0.1, 3), method="avf")
     model.simulate(X[:80] * 0.1, np.linspace(0, 5.0, 500), method="rk4", max_step=0.1,
@@ -298,8 +313,8 @@ def compile_times(rows):
                                  capture_output=True, text=True).stdout
             wall, cpu = (float(x) for x in out.split()[-2:])
             row(rows, "compile", f"first calls of every compiled kernel, {label}", cpu, "s CPU",
-                None, f"wall {wall:.3g} s; one process: predict, H, RK4, AVF (Hessian), "
-                "RK4 of many states in threads")
+                None, f"wall {wall:.3g} s; one process: predict and H of one state and of a "
+                "batch, RK4, AVF (Hessian), RK4 of many states")
 
 
 def fits(cfg, rows):

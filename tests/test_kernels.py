@@ -309,6 +309,41 @@ def test_compiled_failure_matches_numpy(method):
 
 
 @needs_numba
+@pytest.mark.filterwarnings("ignore::sk_hamiltonian.DomainWarning")
+@pytest.mark.parametrize("name", ["periodic", "damped"])
+def test_rk4_of_many_states_in_lanes_agrees(name, monkeypatch):
+    # Enough states for the lanes (two passes of 24 for 41 states, in one
+    # thread); the damped model's with two states failing at different
+    # times (the others must not notice), the periodic one's wrapped.
+    from sk_hamiltonian._kernels import LANE_ROWS, _lanes_jit
+
+    calls = []
+    rk4 = _lanes_jit.rk4
+    monkeypatch.setattr(_lanes_jit, "rk4", lambda *args: calls.append(1) or rk4(*args))
+    model = _fitted(**MODELS[name])
+    x0 = np.random.default_rng(6).uniform(-0.3, 0.3, size=(41, 4))
+    if name == "periodic":
+        x0[:, 2:] += 3.0  # outside the period: wrapped at every output time
+    else:
+        x0[[3, 30], 0] = [40.0, 25.0]
+    t = np.linspace(0, 5.0, 11)
+    results = {}
+    for kernels in ("numpy", "numba"):
+        with config_context(kernels=kernels):
+            paths = model.simulate(x0, t, method="rk4", max_step=0.1, on_failure="nan")
+            results[kernels] = (np.isnan(paths).any(axis=(1, 2)), paths)
+    assert len(calls) == 1 and x0.shape[0] >= LANE_ROWS
+    failed = results["numpy"][0]
+    assert np.flatnonzero(failed).tolist() == ([] if name == "periodic" else [3, 30])
+    np.testing.assert_array_equal(results["numba"][0], failed)
+    # Relative as well: the failing states reach thousands before they fail.
+    np.testing.assert_allclose(results["numba"][1], results["numpy"][1], rtol=1e-12, atol=1e-11)
+    if name == "periodic":
+        low, high = model._space.domain[2:].T
+        assert np.all((results["numba"][1][:, :, 2:] >= low) & (results["numba"][1][:, :, 2:] < high))
+
+
+@needs_numba
 def test_compiled_simulation_does_not_step_in_python(monkeypatch):
     from sk_hamiltonian._integrate import FixedStepIntegrator
 

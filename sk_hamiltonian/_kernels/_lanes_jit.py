@@ -241,3 +241,90 @@ def _work(tree, m, R, lanes):
     return (np.empty((m, tree[10], R, lanes)), np.empty(lanes), np.empty((1, R, lanes)),
             np.empty((n_parents, 1 + m * (R - 1), lanes)),
             np.empty((n_parents, 1 + m * (R - 1), lanes)))
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _field_lanes(Y, tree, children, leaf_coef, gamma, n, work, F):
+    """The field at the first ``n`` rows of ``Y`` (one pass of lanes) into ``F``."""
+    T, w, leaf, cur, nxt = work
+    m = Y.shape[1]
+    d = m // 2
+    _tables(Y, 0, n, tree[0], tree[1], tree[2], tree[3], T, w)
+    root = _contract(T, tree, children, leaf_coef, leaf, cur, nxt)
+    for s in range(n):
+        for i in range(d):
+            F[s, i] = -root[1 + d + i, s] - gamma[i] * root[1 + i, s]
+            F[s, d + i] = root[1 + i, s]
+
+
+@njit(cache=True, nogil=True)
+def rk4(tree, children, leaf_coef, gamma, periodic, low, high, y0, n_sub, h, lanes, out, failed_at):
+    """RK4 of a Hamiltonian's field from every row of ``y0``, the states of a pass in step.
+
+    As :func:`._simulate_jit.integrate` with method 0 (the same steps,
+    failure rule and wrapping of periodic variables at output times); the
+    states of a pass share each evaluation of the field.
+    """
+    n, m = y0.shape
+    n_times = out.shape[0]
+    work = _work(tree, m, 2, lanes)
+    Y = np.empty((lanes, m))
+    K1 = np.empty((lanes, m))
+    K2 = np.empty((lanes, m))
+    K3 = np.empty((lanes, m))
+    K4 = np.empty((lanes, m))
+    Z = np.empty((lanes, m))
+    last = np.empty((lanes, m))
+    for first in range(0, n, lanes):
+        count = min(lanes, n - first)
+        for s in range(count):
+            for i in range(m):
+                last[s, i] = y0[first + s, i]
+            _wrap_row(last, s, periodic, low, high)
+            failed_at[first + s] = n_times
+            for i in range(m):
+                out[0, first + s, i] = last[s, i]
+        for k in range(n_times - 1):
+            Y[:count] = last[:count]
+            for _ in range(n_sub[k]):
+                _field_lanes(Y, tree, children, leaf_coef, gamma, count, work, K1)
+                _shifted(Y, K1, 0.5 * h[k], count, Z)
+                _field_lanes(Z, tree, children, leaf_coef, gamma, count, work, K2)
+                _shifted(Y, K2, 0.5 * h[k], count, Z)
+                _field_lanes(Z, tree, children, leaf_coef, gamma, count, work, K3)
+                _shifted(Y, K3, h[k], count, Z)
+                _field_lanes(Z, tree, children, leaf_coef, gamma, count, work, K4)
+                sixth = h[k] / 6.0
+                for s in range(count):
+                    for i in range(m):
+                        Y[s, i] = Y[s, i] + sixth * (K1[s, i] + 2.0 * (K2[s, i] + K3[s, i]) + K4[s, i])
+            for s in range(count):
+                if failed_at[first + s] < n_times:
+                    out[k + 1, first + s] = last[s]  # failed before: frozen
+                    continue
+                finite = True
+                for i in range(m):
+                    if not math.isfinite(Y[s, i]):
+                        finite = False
+                if not finite:
+                    failed_at[first + s] = k + 1
+                    out[k + 1, first + s] = last[s]
+                    continue
+                _wrap_row(Y, s, periodic, low, high)
+                for i in range(m):
+                    last[s, i] = Y[s, i]
+                    out[k + 1, first + s, i] = Y[s, i]
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _shifted(Y, K, step, count, Z):
+    for s in range(count):
+        for i in range(Y.shape[1]):
+            Z[s, i] = Y[s, i] + step * K[s, i]
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _wrap_row(Y, s, periodic, low, high):
+    for i in range(Y.shape[1]):
+        if periodic[i]:
+            Y[s, i] = low[i] + (Y[s, i] - low[i]) % (high[i] - low[i])

@@ -12,7 +12,7 @@ import math
 import numpy as np
 
 from .._space.fourier import MIN_SEGMENT_NODES, PHASE_LIMITS
-from . import PARALLEL_ROWS, bound_kernels, in_threads
+from . import PARALLEL_ROWS, _in_lanes, _lane_kernels, _lanes, bound_kernels, in_threads
 
 METHOD_CODES = {"rk4": 0, "avf": 1, "leapfrog": 2, "yoshida4": 2}
 
@@ -90,14 +90,26 @@ def integrate_compiled(integrator, y0, t, max_step):
     kind = 0 if model.kind == "gradient" else 1
     n_states = y0.shape[0]
     parts = {}
+    if code == 0 and kind == 0 and _in_lanes(space, model.coef, 1, n_states):
+        # Many states of a Hamiltonian by RK4: in step, sharing each pass of
+        # the field (_lanes_jit).
+        _lanes_jit, lane_tree, children, leaf_coef = _lane_kernels(space, model.coef)
+
+        def run(rows, out, failed_at):
+            _lanes_jit.rk4(lane_tree, children, leaf_coef, gamma, periodic, low, high,
+                           np.ascontiguousarray(y0[rows]), n_sub, h, _lanes(rows.stop - rows.start),
+                           out, failed_at)
+    else:
+        def run(rows, out, failed_at):
+            _simulate_jit.integrate(
+                code, kind, tree, C, flat, tree2, C2, flat2, gamma, lf_weights, rules, rtol, max_iter,
+                periodic, low, high, np.ascontiguousarray(y0[rows]), n_sub, h, out, failed_at,
+            )
 
     def part(rows):
         out = np.empty((n_times, rows.stop - rows.start, m))
         failed_at = np.empty(rows.stop - rows.start, dtype=np.int64)
-        _simulate_jit.integrate(
-            code, kind, tree, C, flat, tree2, C2, flat2, gamma, lf_weights, rules, rtol, max_iter,
-            periodic, low, high, np.ascontiguousarray(y0[rows]), n_sub, h, out, failed_at,
-        )
+        run(rows, out, failed_at)
         parts[rows.start] = (out, failed_at)
 
     # Long runs of many states: one chunk of states per core (about
