@@ -231,17 +231,19 @@ def field(space, X, coef, damping=None):
     gamma = np.zeros(m // 2) if damping is None else np.ascontiguousarray(damping, dtype=float)
     out = np.empty((n, m))
     if _in_lanes(space, coef, 1, n):
-        _lanes_jit, tree, children, leaf_coef = _lane_kernels(space, coef)
-        X = np.ascontiguousarray(X, dtype=float)
+        # The structure applied in numpy, as the state-by-state kernel does
+        # it (a few operations per state, against thousands for the gradient;
+        # a compiled copy would be one more contraction to compile).
+        _, grad, _ = _contract_in_lanes(space, X, coef, 1)
+        grad = grad[:, :, 0]
+        d = m // 2
+        np.subtract(-grad[:, d:], gamma * grad[:, :d], out=out[:, :d])
+        out[:, d:] = grad[:, :d]
+        return out
+    _jit, tree, bound, flat, X = _prepared(space, X, coef)
 
-        def part(rows):
-            _lanes_jit.fields(X[rows], tree, children, leaf_coef, gamma,
-                              _lanes(rows.stop - rows.start), out[rows])
-    else:
-        _jit, tree, bound, flat, X = _prepared(space, X, coef)
-
-        def part(rows):
-            _jit.fields(0, X[rows], tree, bound, flat, gamma, out[rows], *_work(tree, 1, m))
+    def part(rows):
+        _jit.fields(0, X[rows], tree, bound, flat, gamma, out[rows], *_work(tree, 1, m))
 
     in_threads(part, n, PARALLEL_ROWS)
     return out

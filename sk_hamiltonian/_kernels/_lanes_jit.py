@@ -212,22 +212,6 @@ def evaluate(X, tree, children, leaf_coef, order, lanes, value, grad):
                     grad[first + s, i] = root[1 + i, s]
 
 
-@njit(cache=True, nogil=True)
-def fields(X, tree, children, leaf_coef, gamma, lanes, out):
-    """The vector field ``(J^{-1} - Gamma) grad H`` at the rows of ``X`` into ``out``, by blocks of ``lanes``."""
-    n, m = X.shape
-    d = m // 2
-    T, w, leaf, cur, nxt = _work(tree, m, 2, lanes)
-    for first in range(0, n, lanes):
-        count = min(lanes, n - first)
-        _tables(X, first, count, tree[0], tree[1], tree[2], tree[3], T, w)
-        root = _contract(T, tree, children, leaf_coef, leaf, cur, nxt)
-        for s in range(count):
-            for i in range(d):
-                out[first + s, i] = -root[1 + d + i, s] - gamma[i] * root[1 + i, s]
-                out[first + s, d + i] = root[1 + i, s]
-
-
 @njit(cache=True, nogil=True, inline="always")
 def _work(tree, m, R, lanes):
     """Fresh work arrays (allocated here, so that the compiler sees they alias nothing).
@@ -269,11 +253,11 @@ def rk4(tree, children, leaf_coef, gamma, periodic, low, high, y0, n_sub, h, lan
     n_times = out.shape[0]
     work = _work(tree, m, 2, lanes)
     Y = np.empty((lanes, m))
-    K1 = np.empty((lanes, m))
-    K2 = np.empty((lanes, m))
-    K3 = np.empty((lanes, m))
-    K4 = np.empty((lanes, m))
     Z = np.empty((lanes, m))
+    stages = np.empty((4, lanes, m))
+    # The stages' shifts, in units of the step (one call site of the field:
+    # each inlined copy of it costs compile time).
+    shift = (0.0, 0.5, 0.5, 1.0)
     last = np.empty((lanes, m))
     for first in range(0, n, lanes):
         count = min(lanes, n - first)
@@ -287,17 +271,17 @@ def rk4(tree, children, leaf_coef, gamma, periodic, low, high, y0, n_sub, h, lan
         for k in range(n_times - 1):
             Y[:count] = last[:count]
             for _ in range(n_sub[k]):
-                _field_lanes(Y, tree, children, leaf_coef, gamma, count, work, K1)
-                _shifted(Y, K1, 0.5 * h[k], count, Z)
-                _field_lanes(Z, tree, children, leaf_coef, gamma, count, work, K2)
-                _shifted(Y, K2, 0.5 * h[k], count, Z)
-                _field_lanes(Z, tree, children, leaf_coef, gamma, count, work, K3)
-                _shifted(Y, K3, h[k], count, Z)
-                _field_lanes(Z, tree, children, leaf_coef, gamma, count, work, K4)
+                for stage in range(4):
+                    step = shift[stage] * h[k]
+                    for s in range(count):
+                        for i in range(m):
+                            Z[s, i] = Y[s, i] if stage == 0 else Y[s, i] + step * stages[stage - 1, s, i]
+                    _field_lanes(Z, tree, children, leaf_coef, gamma, count, work, stages[stage])
                 sixth = h[k] / 6.0
                 for s in range(count):
                     for i in range(m):
-                        Y[s, i] = Y[s, i] + sixth * (K1[s, i] + 2.0 * (K2[s, i] + K3[s, i]) + K4[s, i])
+                        Y[s, i] = Y[s, i] + sixth * (stages[0, s, i] + 2.0 * (stages[1, s, i] + stages[2, s, i])
+                                                     + stages[3, s, i])
             for s in range(count):
                 if failed_at[first + s] < n_times:
                     out[k + 1, first + s] = last[s]  # failed before: frozen
@@ -314,13 +298,6 @@ def rk4(tree, children, leaf_coef, gamma, periodic, low, high, y0, n_sub, h, lan
                 for i in range(m):
                     last[s, i] = Y[s, i]
                     out[k + 1, first + s, i] = Y[s, i]
-
-
-@njit(cache=True, nogil=True, inline="always")
-def _shifted(Y, K, step, count, Z):
-    for s in range(count):
-        for i in range(Y.shape[1]):
-            Z[s, i] = Y[s, i] + step * K[s, i]
 
 
 @njit(cache=True, nogil=True, inline="always")
