@@ -8,18 +8,21 @@ states innermost: each coefficient, table entry or partial sum of a node is a
 row of ``S`` numbers, and every sum over children is a loop over the lanes,
 which the compiler vectorizes whatever the shape of the tree.
 
-Two things make it vectorize, both measured (``benchmarks/bench_scale.py``):
+Three things make it fast, each measured with scratch scripts (the numbers
+are on the scaling page of the docs):
 
 - the work arrays are allocated inside the compiled call, so the compiler
-  knows they alias nothing (given as arguments, they did not vectorize, and a
-  batch ran at the speed of the state-by-state kernel);
+  knows they alias nothing (given as arguments, most loops over the lanes
+  stayed scalar);
 - the lane count is a run-time value (a compile-time one was unrolled into
-  scalar code).
+  scalar code);
+- it is a multiple of 8 (:func:`sk_hamiltonian._kernels._lanes`).
 
 Results are the value and the gradient (``R = 1`` or ``2`` table rows) of a
 scalar ``sum_j coef[j] phi_j``: what ``predict``, ``hamiltonian`` and
-``gradient`` take for batches. The Hessian, several targets and small
-batches stay with :mod:`._jit`.
+``gradient`` take for batches, and RK4 (:func:`rk4`) for many initial
+states. The Hessian, several targets, small batches and the other
+integrators stay with :mod:`._jit` and :mod:`._simulate_jit`.
 
 A *tree* is the tuple of :func:`.tree.tree_arrays`; *children* the tuple of
 :func:`.tree.children_by_parent`; ``leaf_coef`` the coefficients in the
@@ -161,9 +164,10 @@ def _leaf_sums(p, T, leaf_start, leaf_column, leaf_coef, leaf):
 
 @njit(cache=True, nogil=True, inline="always")
 def _add_child(dst, P, src, row, T, v, c, n_in, first):
-    """Node ``row`` of ``src`` (``n_in`` slots) times column ``c`` of variable ``v``, into parent ``P`` of ``dst``.
+    """Child ``row`` of ``src`` times column ``c`` of variable ``v``, into parent ``P`` of ``dst``.
 
-    Stored if it is the parent's ``first`` child, else added.
+    The child carries ``n_in`` slots, the parent one more (R = 2). Stored if
+    it is the parent's ``first`` child, else added.
     """
     R = T.shape[2]
     S = T.shape[3]
@@ -278,10 +282,10 @@ def rk4(tree, children, leaf_coef, gamma, periodic, low, high, y0, n_sub, h, lan
                             Z[s, i] = Y[s, i] if stage == 0 else Y[s, i] + step * stages[stage - 1, s, i]
                     _field_lanes(Z, tree, children, leaf_coef, gamma, count, work, stages[stage])
                 sixth = h[k] / 6.0
+                k1, k2, k3, k4 = stages[0], stages[1], stages[2], stages[3]
                 for s in range(count):
                     for i in range(m):
-                        Y[s, i] = Y[s, i] + sixth * (stages[0, s, i] + 2.0 * (stages[1, s, i] + stages[2, s, i])
-                                                     + stages[3, s, i])
+                        Y[s, i] = Y[s, i] + sixth * (k1[s, i] + 2.0 * (k2[s, i] + k3[s, i]) + k4[s, i])
             for s in range(count):
                 if failed_at[first + s] < n_times:
                     out[k + 1, first + s] = last[s]  # failed before: frozen
