@@ -312,20 +312,21 @@ def test_compiled_failure_matches_numpy(method):
 @pytest.mark.filterwarnings("ignore::sk_hamiltonian.DomainWarning")
 @pytest.mark.parametrize("name", ["periodic", "damped"])
 def test_rk4_of_many_states_in_lanes_agrees(name, monkeypatch):
-    # Enough states for the lanes (two passes of 24 for 41 states, in one
-    # thread); the damped model's with two states failing at different
-    # times (the others must not notice), the periodic one's wrapped.
+    # Enough states for the lanes, in one thread: the periodic model's 41 in
+    # one pass of 48 lanes, wrapped; the damped model's 300 in two passes of
+    # 152, three of them failing at different times in both passes (the
+    # others must not notice).
     from sk_hamiltonian._kernels import LANE_ROWS, _lanes_jit
 
     calls = []
     rk4 = _lanes_jit.rk4
     monkeypatch.setattr(_lanes_jit, "rk4", lambda *args: calls.append(1) or rk4(*args))
     model = _fitted(**MODELS[name])
-    x0 = np.random.default_rng(6).uniform(-0.3, 0.3, size=(41, 4))
+    x0 = np.random.default_rng(6).uniform(-0.3, 0.3, size=(41 if name == "periodic" else 300, 4))
     if name == "periodic":
         x0[:, 2:] += 3.0  # outside the period: wrapped at every output time
     else:
-        x0[[3, 30], 0] = [40.0, 25.0]
+        x0[[3, 30, 200], 0] = [40.0, 25.0, 30.0]
     t = np.linspace(0, 5.0, 11)
     results = {}
     for kernels in ("numpy", "numba"):
@@ -334,7 +335,7 @@ def test_rk4_of_many_states_in_lanes_agrees(name, monkeypatch):
             results[kernels] = (np.isnan(paths).any(axis=(1, 2)), paths)
     assert len(calls) == 1 and x0.shape[0] >= LANE_ROWS
     failed = results["numpy"][0]
-    assert np.flatnonzero(failed).tolist() == ([] if name == "periodic" else [3, 30])
+    assert np.flatnonzero(failed).tolist() == ([] if name == "periodic" else [3, 30, 200])
     np.testing.assert_array_equal(results["numba"][0], failed)
     # Relative as well: the failing states reach thousands before they fail.
     np.testing.assert_allclose(results["numba"][1], results["numpy"][1], rtol=1e-12, atol=1e-11)
