@@ -228,18 +228,15 @@ def field(space, X, coef, damping=None):
     dXdt : ndarray of shape (n_samples, n_states)
     """
     n, m = X.shape
+    if _in_lanes(space, coef, 1, n):
+        # The structure applied in numpy, as the numpy path applies it (a few
+        # operations per state, against thousands for the gradient; a
+        # compiled copy would be one more contraction to compile).
+        from .._integrate.avf import apply_structure
+
+        return apply_structure(_contract_in_lanes(space, X, coef, 1)[1][:, :, 0], damping)
     gamma = np.zeros(m // 2) if damping is None else np.ascontiguousarray(damping, dtype=float)
     out = np.empty((n, m))
-    if _in_lanes(space, coef, 1, n):
-        # The structure applied in numpy, as the state-by-state kernel does
-        # it (a few operations per state, against thousands for the gradient;
-        # a compiled copy would be one more contraction to compile).
-        _, grad, _ = _contract_in_lanes(space, X, coef, 1)
-        grad = grad[:, :, 0]
-        d = m // 2
-        np.subtract(-grad[:, d:], gamma * grad[:, :d], out=out[:, :d])
-        out[:, d:] = grad[:, :d]
-        return out
     _jit, tree, bound, flat, X = _prepared(space, X, coef)
 
     def part(rows):

@@ -34,6 +34,8 @@ import math
 import numpy as np
 from numba import njit
 
+from ._simulate_jit import _wrap
+
 
 @njit(cache=True, nogil=True, inline="always")
 def _tables(X, first, n, family, degree, slope, offset, T, w):
@@ -268,7 +270,7 @@ def rk4(tree, children, leaf_coef, gamma, periodic, low, high, y0, n_sub, h, lan
         for s in range(count):
             for i in range(m):
                 last[s, i] = y0[first + s, i]
-            _wrap_row(last, s, periodic, low, high)
+            _wrap(last[s], periodic, low, high)
             failed_at[first + s] = n_times
             for i in range(m):
                 out[0, first + s, i] = last[s, i]
@@ -298,14 +300,8 @@ def rk4(tree, children, leaf_coef, gamma, periodic, low, high, y0, n_sub, h, lan
                     failed_at[first + s] = k + 1
                     out[k + 1, first + s] = last[s]
                     continue
-                _wrap_row(Y, s, periodic, low, high)
+                _wrap(Y[s], periodic, low, high)
                 for i in range(m):
                     last[s, i] = Y[s, i]
                     out[k + 1, first + s, i] = Y[s, i]
 
-
-@njit(cache=True, nogil=True, inline="always")
-def _wrap_row(Y, s, periodic, low, high):
-    for i in range(Y.shape[1]):
-        if periodic[i]:
-            Y[s, i] = low[i] + (Y[s, i] - low[i]) % (high[i] - low[i])
