@@ -7,5 +7,5 @@ from importlib.util import find_spec
 # none. tests/test_kernels.py skips its compiled cases with the reason.
 collect_ignore = []
 if find_spec("numba") is None:
-    collect_ignore += ["sk_hamiltonian/_kernels/_jit.py", "sk_hamiltonian/_kernels/_simulate_jit.py",
-                       "sk_hamiltonian/_kernels/_lanes_jit.py"]
+    collect_ignore += [f"sk_hamiltonian/_kernels/{name}.py"
+                       for name in ("_jit", "_simulate_jit", "_lanes_jit", "_checked_jit")]

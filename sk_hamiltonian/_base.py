@@ -609,9 +609,14 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
     def _warn_outside(self, X, domain=None, what="X", stacklevel=3):
         domain = self.domain_ if domain is None else domain
         n_outside = count_outside(X, domain, self.periodic_, slack=DOMAIN_SLACK)
+        self._warn_n_outside(n_outside, X.shape[0], domain, what, stacklevel + 1)
+
+    def _warn_n_outside(self, n_outside, n_samples, domain=None, what="X", stacklevel=3):
+        """The ``DomainWarning`` for ``n_outside`` of ``n_samples`` states (none for none)."""
         if n_outside:
+            domain = self.domain_ if domain is None else domain
             warnings.warn(
-                f"{n_outside / X.shape[0]:.1%} of {what} lie outside the domain "
+                f"{n_outside / n_samples:.1%} of {what} lie outside the domain "
                 f"{domain.tolist()}, where the model is not trusted.",
                 DomainWarning,
                 stacklevel=stacklevel,
@@ -664,6 +669,11 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
             evaluated at the layout's states.
         """
         self._check_fitted()
+        checked = self._checked_prediction(X)
+        if checked is not None:
+            dXdt, n_outside = checked
+            self._warn_n_outside(n_outside, X.shape[0])
+            return dXdt
         if is_trajectory_container(X):
             states = unpack_derivatives(X).states
             if isinstance(states, np.ndarray):
@@ -672,6 +682,16 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
         X = self._validate_states(X)
         self._warn_outside(X)
         return self._vector_field(X)
+
+    def _checked_prediction(self, X):
+        """``(dXdt, n_outside)`` of a few states in one compiled call, or None.
+
+        What ``predict`` does for a few states (validation, domain check,
+        field) costs more in Python than the compiled field itself; a model
+        that can do it in one compiled call overrides this. None means the
+        general path (and its errors).
+        """
+        return None
 
     def _validate_states(self, X):
         """``validate_data(self, X, reset=False)``, short-cut for a plain finite float64 array.

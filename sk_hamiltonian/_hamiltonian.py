@@ -5,7 +5,7 @@ import warnings
 import numpy as np
 
 from . import _kernels
-from ._base import BaseTrajectoryRegressor
+from ._base import DOMAIN_SLACK, BaseTrajectoryRegressor
 from ._config import use_numba
 from ._conservation import decorrelated, energy_trend
 from ._design import column_groups, hamiltonian_blocks, quadrature_nodes, value_blocks
@@ -392,6 +392,21 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
     def _hessian(self, X):
         return self._eval_space.hessian_dot(X, self._eval_coef)
 
+    def _checked_prediction(self, X):
+        # The compiled path takes a few states of a plain float64 array (what
+        # _validate_states passes unchanged, finite or not) with every check in
+        # one call; anything else, and any state that is not finite, goes the
+        # general way.
+        if not (use_numba() and type(X) is np.ndarray and X.dtype == np.float64 and X.ndim == 2
+                and 0 < X.shape[0] < _kernels.LANE_ROWS and X.shape[1] == self.n_features_in_
+                and X.flags.c_contiguous and not hasattr(self, "feature_names_in_")):
+            return None
+        coef, damping, domain = self._eval_coef, self.damping_, self.domain_
+        if not (_plain(coef) and coef.ndim == 1 and _plain(damping) and _plain(domain)):
+            return None
+        return _kernels.checked_field(self._eval_space, X, coef, damping, domain,
+                                      self.periodic_, DOMAIN_SLACK)
+
     def _vector_field(self, X):
         if use_numba():
             # One compiled pass with the structure applied (zero damping is none).
@@ -460,3 +475,8 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
         flat, lead = self._check_states(X)
         self._warn_outside(flat)
         return self._gradient(flat).reshape(lead + (self.n_features_in_,))
+
+
+def _plain(a):
+    """Whether ``a`` is a C-ordered float64 ndarray (what the compiled kernels take as is)."""
+    return type(a) is np.ndarray and a.dtype == np.float64 and a.flags.c_contiguous

@@ -397,3 +397,133 @@ def test_idle_cores_counts_other_processes_only():
     # This process's own running threads (the test's) are not "others".
     assert idle <= (os.cpu_count() or 1) - 1
     assert threads._own_running_tasks() >= 1
+
+
+def test_pack_keeps_every_item_at_its_offset_and_shape():
+    from sk_hamiltonian._kernels.packing import SLOTS, pack
+
+    items = [np.arange(6, dtype=np.int64).reshape(2, 3), np.linspace(0, 1, 4), 17,
+             np.array([True, False, True]), np.arange(24.0).reshape(2, 3, 4),
+             np.zeros((0, 2), dtype=np.int64), np.zeros((0, 1))]
+    ints, floats = pack(items)
+    assert ints.dtype == np.int64 and floats.dtype == np.float64
+    for k, item in enumerate(items):
+        offset, *dims = ints[SLOTS * k : SLOTS * (k + 1)]
+        if isinstance(item, int):
+            assert offset == item
+            continue
+        source = floats if item.dtype.kind == "f" else ints
+        assert dims == list(item.shape) + [1] * (SLOTS - 1 - item.ndim)
+        np.testing.assert_array_equal(source[offset : offset + item.size].reshape(item.shape), item)
+    with pytest.raises(ValueError, match="at most 3"):
+        pack([np.zeros((1, 1, 1, 1))])
+
+
+def _checked_calls(monkeypatch):
+    """Count the calls of the one-call kernel behind predict (it must be taken)."""
+    from sk_hamiltonian._kernels import _checked_jit
+
+    calls = []
+    kernel = _checked_jit.checked_fields
+    monkeypatch.setattr(_checked_jit, "checked_fields", lambda *a: calls.append(1) or kernel(*a))
+    return calls
+
+
+def _sparse_model():
+    from sk_hamiltonian import HamiltonianRegressor
+
+    rng = np.random.default_rng(4)
+    X = rng.uniform(-1, 1, size=(300, 2))
+    dX = np.column_stack([-X[:, 1] - 2 * X[:, 1] ** 3, X[:, 0]])  # H = p^2/2 + q^2/2 + q^4/2
+    return HamiltonianRegressor(degree=6, threshold=0.01).fit(X, dX)
+
+
+@needs_numba
+@pytest.mark.parametrize("name", ["hamiltonian", "damped", "separable", "periodic", "sparse"])
+@pytest.mark.parametrize("n_samples", [1, 7])
+def test_one_call_prediction_is_the_compiled_field(name, n_samples, monkeypatch):
+    # predict of a few states takes the one-call kernel, whose field is the
+    # same compiled code as the general compiled path's: equal to the bit.
+    from sk_hamiltonian import _kernels
+
+    model = _sparse_model() if name == "sparse" else _fitted(**MODELS[name])
+    if name == "sparse":
+        assert model.n_terms_ < model._space.n_terms  # kept terms only
+    low, high = model.domain_.T
+    X = np.random.default_rng(5).uniform(low, high, size=(n_samples, model.n_features_in_))
+    calls = _checked_calls(monkeypatch)
+    with config_context(kernels="numba"):
+        got = model.predict(X)
+        general = _kernels.field(model._eval_space, X, model._eval_coef, model.damping_)
+    with config_context(kernels="numpy"):
+        expected = model.predict(X)
+    assert len(calls) == 1  # packed at the first call, then computed
+    np.testing.assert_array_equal(got, general)
+    np.testing.assert_allclose(got, expected, rtol=0, atol=1e-12 * np.abs(expected).max())
+
+
+@needs_numba
+def test_one_call_prediction_warns_and_raises_as_the_general_path(monkeypatch):
+    model = _fitted(**MODELS["periodic"])
+    calls = _checked_calls(monkeypatch)
+    inside = np.array([[0.1, 0.0, 0.2, -0.1]])
+    # Two of four states outside the box; the periodic angles never are.
+    X = np.array([[0.1, 0.0, 9.0, -9.0], [0.7, 0.0, 0.0, 0.0], [0.0, -0.5, 0.0, 0.0],
+                  [0.0, 0.0, 0.0, 0.0]])
+    X[2, 1] -= 1e-3
+    messages = {}
+    for kernels in ("numpy", "numba"):
+        with config_context(kernels=kernels):
+            with pytest.warns(sk_hamiltonian.DomainWarning) as record:
+                model.predict(X)
+            messages[kernels] = [str(w.message) for w in record]
+            assert record[0].filename == __file__  # points at the caller
+            with pytest.raises(ValueError, match="NaN"):
+                model.predict(np.array([[0.1, np.nan, 0.0, 0.0]]))
+            with pytest.raises(ValueError, match="infinity"):
+                model.predict(np.array([[0.1, 0.0, np.inf, 0.0]]))
+            import warnings
+
+            with warnings.catch_warnings():
+                warnings.simplefilter("error")
+                model.predict(inside)
+    assert messages["numba"] == messages["numpy"]
+    assert messages["numba"][0].startswith("50.0% of X lie outside the domain")
+    assert len(calls) >= 4  # every compiled prediction above took the one-call kernel
+
+
+@needs_numba
+def test_one_call_prediction_sees_coefficients_changed_in_place(monkeypatch):
+    import pickle
+
+    model = _fitted(**MODELS["damped"])
+    X = np.array([[0.1, 0.0, 0.2, -0.1], [0.0, 0.2, -0.1, 0.3]])
+    calls = _checked_calls(monkeypatch)
+    results = []
+    with config_context(kernels="numba"):
+        results.append(model.predict(X))
+        model.coef_[3] += 1.0
+        results.append(model.predict(X))
+        model.damping_[0] = 0.5
+        results.append(model.predict(X))
+        model.coef_[0] = np.nan  # a NaN coefficient equals itself: packed once, not forever
+        results.append(model.predict(X))
+        results.append(model.predict(X))
+        again = pickle.loads(pickle.dumps(model))
+        assert "_checked_kernel" not in again._space.__dict__
+        results.append(again.predict(X))
+    # Packed before the first call; after a change of the coefficients the
+    # kernel says so and is called again, packed anew (the damping is read
+    # at every call); the unpickled model packs its own.
+    assert len(calls) == 1 + 2 + 1 + 2 + 1 + 1
+    assert not np.allclose(results[0], results[1]) and not np.allclose(results[1], results[2])
+    from sk_hamiltonian import _kernels
+
+    with config_context(kernels="numba"):
+        general = _kernels.field(model._eval_space, X, model._eval_coef, model.damping_)
+    with config_context(kernels="numpy"):
+        expected = model.predict(X)
+    assert np.isnan(expected).any()
+    for got in results[3:]:
+        np.testing.assert_array_equal(got, general)
+        np.testing.assert_allclose(got, expected, rtol=1e-14, atol=1e-14)  # NaN where numpy's are

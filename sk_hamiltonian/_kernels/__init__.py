@@ -13,6 +13,8 @@ path runs exactly as before.
 - both take batches of :data:`LANE_ROWS` states or more (value and gradient
   of one scalar) through the tree together (:mod:`._lanes_jit`), fewer
   state by state (:mod:`._jit`);
+- :func:`checked_field`: the field at a few states with ``predict``'s checks,
+  in one compiled call (:mod:`._checked_jit`);
 - :mod:`.simulate`: whole fixed-step integrations as compiled loops;
 - :mod:`.threads`: BLAS threads chosen by problem size.
 """
@@ -21,6 +23,7 @@ import threading
 
 import numpy as np
 
+from .packing import pack
 from .threads import thread_pool
 
 _NUMBA = None
@@ -53,6 +56,7 @@ def numba_available():
 
 
 _JIT = None
+_CHECKED = None  # the module of checked_field's kernel, imported on first use
 
 
 def _compiled():
@@ -244,6 +248,60 @@ def field(space, X, coef, damping=None):
 
     in_threads(part, n, PARALLEL_ROWS)
     return out
+
+
+def checked_field(space, X, coef, damping, domain, periodic, slack):
+    """:func:`field` at a few states, with ``predict``'s checks in the same compiled call.
+
+    One compiled call with a dozen arguments (:mod:`._checked_jit`), for
+    predictions of one state at a time (a user's own integrator, a
+    callback): no comparison of the coefficients in Python, no numpy call
+    per check.
+
+    Parameters
+    ----------
+    space : ModelSpace
+        The basis (its tree, not flat products, or flat: as :func:`field`).
+    X : ndarray of shape (n_samples, n_states)
+        States, C-ordered float64.
+    coef : ndarray of shape (n_terms,)
+        Coefficients of ``H``, C-ordered float64.
+    damping : ndarray of shape (n_states // 2,)
+        ``Gamma``'s diagonal, C-ordered float64 (zeros for none).
+    domain : ndarray of shape (n_states, 2)
+        The box of the domain check, C-ordered float64.
+    periodic : ndarray of shape (n_states,) of bool
+        Variables never outside the box.
+    slack : float
+        Tolerance of the domain check, relative to each interval's width
+        (as :func:`sk_hamiltonian._space.space.count_outside`).
+
+    Returns
+    -------
+    result : tuple or None
+        ``(dXdt, n_outside)``: the field and the number of rows outside the
+        box; None where ``X`` has a NaN or an infinity (nothing computed:
+        the caller's validation says what is wrong).
+    """
+    global _CHECKED
+    if _CHECKED is None:
+        from . import _checked_jit
+
+        _CHECKED = _checked_jit
+    out = np.empty(X.shape)
+    work = _work(_tree(space)[0], 1, X.shape[1])
+    packed = space.__dict__.get("_checked_kernel")
+    status = _CHECKED.STALE
+    if packed is not None:
+        status = _CHECKED.checked_fields(X, coef, domain, periodic, slack, damping, *packed, *work, out)
+    if status == _CHECKED.STALE:
+        # First call, or coefficients other than those packed: pack anew.
+        tree, bound, flat = bound_kernels(space, coef)
+        packed = space.__dict__["_checked_kernel"] = pack([*tree, bound, *flat, coef.copy()])
+        status = _CHECKED.checked_fields(X, coef, domain, periodic, slack, damping, *packed, *work, out)
+    if status == _CHECKED.NOT_FINITE:
+        return None
+    return out, status
 
 
 def _contract_in_lanes(space, X, coef, order):

@@ -160,6 +160,7 @@ class ModelSpace:
         state = {**self.__dict__, "_contraction": None, "_flat_plans": {}, "_bindings": {},
                  "_derivative_maps": None}
         state.pop("_kernel_tree", None)
+        state.pop("_checked_kernel", None)
         return state
 
     def __setstate__(self, state):
