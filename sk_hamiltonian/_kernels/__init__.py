@@ -289,16 +289,17 @@ def checked_field(space, X, coef, damping, domain, periodic, slack):
 
         _CHECKED = _checked_jit
     out = np.empty(X.shape)
+    checks = (0, X, coef, domain, periodic, slack, damping)
     work = _work(_tree(space)[0], 1, X.shape[1])
     packed = space.__dict__.get("_checked_kernel")
     status = _CHECKED.STALE
     if packed is not None:
-        status = _CHECKED.checked_fields(X, coef, domain, periodic, slack, damping, *packed, *work, out)
+        status = _CHECKED.checked_fields(*checks, *packed, *work, out)
     if status == _CHECKED.STALE:
         # First call, or coefficients other than those packed: pack anew.
         tree, bound, flat = bound_kernels(space, coef)
         packed = space.__dict__["_checked_kernel"] = pack([*tree, bound, *flat, coef.copy()])
-        status = _CHECKED.checked_fields(X, coef, domain, periodic, slack, damping, *packed, *work, out)
+        status = _CHECKED.checked_fields(*checks, *packed, *work, out)
     if status == _CHECKED.NOT_FINITE:
         return None
     return out, status

@@ -6,9 +6,9 @@ comparing the coefficients with those bound, checking the states for
 finiteness and against the domain in Python) took as long again. Here the
 bound arrays come packed (:mod:`.packing`), and the kernel itself compares
 the coefficients it is given with the ones it was bound to, checks the
-states and counts those outside the domain, then computes the field with
-the same code as :func:`._jit.field_at`, so the answers are the same to the
-bit.
+states and counts those outside the domain, then calls the general path's
+compiled :func:`._jit.fields`, so the answers are the same to the bit and
+the contraction is compiled once for both.
 """
 
 import math
@@ -16,12 +16,12 @@ import math
 import numpy as np
 from numba import njit
 
-from ._jit import field_at
+from ._jit import fields
+from .packing import SLOTS
 
 # Status codes of checked_fields besides a count of states outside.
 STALE = -1  # the coefficients differ from the ones bound: nothing computed
 NOT_FINITE = -2  # a state has a NaN or an infinity: nothing computed
-SLOTS = 4  # as packing.SLOTS
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -60,13 +60,16 @@ def unpack(ints, floats):
 
     Returns ``(tree, C, flat, snapshot)``: the tree and flat tuples of
     :func:`sk_hamiltonian._kernels.bound_kernels`, the bound coefficients
-    and the coefficients they were bound from.
+    and the coefficients they were bound from. The items are, in order, the
+    13 of the tree (0 to 12, the width a plain integer), the bound
+    coefficients (13), the 10 of the flat tuple (14 to 23, its flags as
+    integers) and the coefficients (24).
     """
     tree = (_ints(ints, 0), _ints(ints, 1), _floats(ints, floats, 2), _floats(ints, floats, 3),
             _ints(ints, 4), _ints(ints, 5), _ints(ints, 6), _ints(ints, 7), _ints(ints, 8),
             _ints(ints, 9), ints[SLOTS * 10], _ints(ints, 11), _ints2(ints, 12))
     C = _floats3(ints, floats, 13)
-    flat = (_ints(ints, 14), _ints2(ints, 15), _ints(ints, 16), _floats2(ints, floats, 17),
+    flat = (_ints(ints, 14) != 0, _ints2(ints, 15), _ints(ints, 16), _floats2(ints, floats, 17),
             _ints2(ints, 18), _ints(ints, 19), _floats2(ints, floats, 20),
             _ints2(ints, 21), _ints(ints, 22), _floats2(ints, floats, 23))
     snapshot = _floats(ints, floats, 24)
@@ -74,11 +77,14 @@ def unpack(ints, floats):
 
 
 @njit(cache=True, nogil=True)
-def checked_fields(X, coef, domain, periodic, slack, gamma, ints, floats, T, cur, nxt, pad, out):
+def checked_fields(kind, X, coef, domain, periodic, slack, gamma, ints, floats, T, cur, nxt, pad, out):
     """The field ``(J^{-1} - Gamma) grad H`` at the rows of ``X`` into ``out``, after predict's checks.
 
     Parameters
     ----------
+    kind : int
+        0, as :func:`._jit.fields` takes it (an argument, not a constant in
+        the call below: a literal would compile that kernel once more).
     X : ndarray of shape (n, m)
         States.
     coef : ndarray of shape (n_terms,)
@@ -108,7 +114,8 @@ def checked_fields(X, coef, domain, periodic, slack, gamma, ints, floats, T, cur
         return STALE
     # Bit for bit, as the bindings are cached by the coefficients' bytes (a
     # NaN equals itself, -0.0 differs from 0.0). No early exit: the loop then
-    # vectorizes (1.5 against 2.7-4.8 us for 3 875 coefficients, measured).
+    # vectorizes (1.5 against 2.7 us for 3 875 coefficients, a scratch timing
+    # of both under load).
     bits = coef.view(np.int64)
     bound_bits = snapshot.view(np.int64)
     differ = 0
@@ -130,6 +137,7 @@ def checked_fields(X, coef, domain, periodic, slack, gamma, ints, floats, T, cur
             if X[s, i] < domain[i, 0] - margin or X[s, i] > domain[i, 1] + margin:
                 outside += 1
                 break
-    for s in range(n):
-        field_at(0, tree, C, flat, gamma, X[s], T, cur, nxt, pad, out[s])
+    # A call, not an inlined copy: the general path's compiled kernel, for
+    # the same answers and without compiling the contraction once more.
+    fields(kind, X, tree, C, flat, gamma, out, T, cur, nxt, pad)
     return outside
