@@ -401,11 +401,15 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
                 and 0 < X.shape[0] < _kernels.LANE_ROWS and X.shape[1] == self.n_features_in_
                 and X.flags.c_contiguous and not hasattr(self, "feature_names_in_")):
             return None
-        coef, damping, domain = self._eval_coef, self.damping_, self.domain_
-        if not (_plain(coef) and coef.ndim == 1 and _plain(damping) and _plain(domain)):
+        # The fitted attributes as fit left them (the kernel does not check
+        # shapes: a domain_ or damping_ set by hand goes the general way).
+        m = X.shape[1]
+        coef, damping, domain, periodic = self._eval_coef, self.damping_, self.domain_, self.periodic_
+        if not (_plain(coef, (self._eval_space.n_terms,)) and _plain(damping, (m // 2,))
+                and _plain(domain, (m, 2)) and _plain(periodic, (m,), np.bool_)):
             return None
-        return _kernels.checked_field(self._eval_space, X, coef, damping, domain,
-                                      self.periodic_, DOMAIN_SLACK)
+        return _kernels.checked_field(self._eval_space, X, coef, damping, domain, periodic,
+                                      DOMAIN_SLACK)
 
     def _vector_field(self, X):
         if use_numba():
@@ -477,6 +481,6 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
         return self._gradient(flat).reshape(lead + (self.n_features_in_,))
 
 
-def _plain(a):
-    """Whether ``a`` is a C-ordered float64 ndarray (what the compiled kernels take as is)."""
-    return type(a) is np.ndarray and a.dtype == np.float64 and a.flags.c_contiguous
+def _plain(a, shape, dtype=np.float64):
+    """Whether ``a`` is a C-ordered ndarray of this shape and dtype (as the kernels take it)."""
+    return type(a) is np.ndarray and a.dtype == dtype and a.shape == shape and a.flags.c_contiguous

@@ -527,3 +527,21 @@ def test_one_call_prediction_sees_coefficients_changed_in_place(monkeypatch):
     for got in results[3:]:
         np.testing.assert_array_equal(got, general)
         np.testing.assert_allclose(got, expected, rtol=1e-14, atol=1e-14)  # NaN where numpy's are
+
+
+@needs_numba
+def test_other_inputs_and_hand_set_attributes_take_the_general_path(monkeypatch):
+    # Not a plain C-ordered float64 array of a few states, or fitted
+    # attributes of another shape than fit gave: no one-call kernel (it
+    # does not check shapes), the same answers.
+    model = _fitted(**MODELS["damped"])
+    X = np.array([[0.1, 0.0, 0.2, -0.1], [0.0, 0.2, -0.1, 0.3]])
+    with config_context(kernels="numba"):
+        expected = model.predict(X)
+        calls = _checked_calls(monkeypatch)
+        for other in (np.asfortranarray(X), X.tolist(), X.astype(np.float32), np.tile(X, (8, 1))):
+            got = model.predict(other)
+            np.testing.assert_allclose(got[:2], expected, rtol=1e-6 if other is not X else 0)
+        model.damping_ = np.append(model.damping_, 0.0)
+        model.predict(X)
+    assert calls == []
