@@ -285,7 +285,8 @@ def evaluation(cfg, rows):
         rk4, avf = r["rk4"], r["avf"]
         row(rows, group, f"predict, one state, in field evaluations of RK4 [{kernels}]",
             r["gauge"], "evaluations", None,
-            "CPU time; median of 7 rounds, each predict (best of 3 x 200) then 500 RK4 steps")
+            f"CPU time; median of 7 rounds, each predict (best of 3 x 200) then {min(n, 500)} "
+            "RK4 steps")
         row(rows, "simulation", f"{n} RK4 steps from u0* [{kernels}]",
             rk4[0] * 10_000 / n, "s per 1e4", target["rk4"],
             f"CPU time (wall {rk4[1] * 10_000 / n:.3g}); measured over {n} steps")

@@ -253,7 +253,7 @@ def field(space, X, coef, damping=None):
 def checked_field(space, X, coef, damping, domain, periodic, slack):
     """:func:`field` at a few states, with ``predict``'s checks in the same compiled call.
 
-    One compiled call with a dozen arguments (:mod:`._checked_jit`), for
+    One compiled call of 14 arguments (:mod:`._checked_jit`), for
     predictions of one state at a time (a user's own integrator, a
     callback): no comparison of the coefficients in Python, no numpy call
     per check.
@@ -261,7 +261,7 @@ def checked_field(space, X, coef, damping, domain, periodic, slack):
     Parameters
     ----------
     space : ModelSpace
-        The basis (its tree, not flat products, or flat: as :func:`field`).
+        The basis (contracted by its tree or flat, as :func:`field`).
     X : ndarray of shape (n_samples, n_states)
         States, C-ordered float64.
     coef : ndarray of shape (n_terms,)
