@@ -160,6 +160,12 @@ def value_moments(space):
     for i in range(space.n_states):
         if space.periodic[i]:
             values = np.diag(fourier_moments(space.fourier_degree)[0])
+        elif space.mixed[i]:
+            # Each family's own moments (they are not orthogonal to each other).
+            values = np.concatenate([
+                np.diag(legendre_moments(space.legendre_degree)[0]),
+                np.diag(fourier_moments(space.fourier_degree)[0])[1:],
+            ])
         else:
             values = np.diag(legendre_moments(space.legendre_degree)[0])
         moments *= values[space.columns[:, i]]

@@ -14,6 +14,7 @@ from collections import namedtuple
 import numpy as np
 from sklearn.utils.validation import check_is_fitted
 
+from ._space.mixed import MIXED_PERIOD, code_frequency
 from ._space.readable import ReadableBasis
 
 __all__ = ["HamiltonianTerm", "format_hamiltonian", "hamiltonian_terms", "to_sympy"]
@@ -27,7 +28,9 @@ coefficient : float
     Its coefficient.
 powers : tuple of int
     Per state variable: the exponent ``k`` of ``x**k``, or for a periodic
-    variable a signed frequency (``+k``: ``cos(k w x)``, ``-k``: ``sin(k w x)``).
+    variable a signed frequency (``+k``: ``cos(k w x)``, ``-k``: ``sin(k w x)``);
+    for a mixed variable (``mixed=True``) an exponent ``k >= 0`` or a negative
+    code of ``cos(k x)`` (``-(2k - 1)``) or ``sin(k x)`` (``-2k``).
 text : str
     The term's factors, e.g. ``"p^2"`` or ``"p1*cos(q2)"`` (without coefficient).
 size : float
@@ -39,14 +42,17 @@ size : float
 
 
 def _factor_size(power, magnitude, periodic):
-    if periodic or power == 0:
+    if periodic or power <= 0:
         return 1.0
     return float(magnitude) ** int(power)
 
 
-def _factor_text(name, power, periodic, omega):
+def _factor_text(name, power, periodic, omega, mixed=False):
     if power == 0:
         return None
+    if mixed and power < 0:
+        # A mixed variable's Fourier factor, named by its signed frequency.
+        return _factor_text(name, int(code_frequency(power)), True, omega)
     if not periodic:
         return name if power == 1 else f"{name}^{power}"
     k = abs(power) * omega
@@ -130,8 +136,9 @@ def hamiltonian_terms(model, *, state_names=None, rtol=1e-9):
     check_is_fitted(model, "coef_")
     state_names = _state_names(model, state_names)
     unique = np.asarray(model.powers_)
+    mixed = _mixed(model)
     # Readable coefficients of every output (one for H~), by the change of basis.
-    coef = ReadableBasis(unique, model.domain_, model.periodic_).from_fitting @ np.ravel(
+    coef = ReadableBasis(unique, model.domain_, model.periodic_, mixed).from_fitting @ np.ravel(
         model.coef_
     )
     low, high = model.domain_[:, 0], model.domain_[:, 1]
@@ -146,11 +153,12 @@ def hamiltonian_terms(model, *, state_names=None, rtol=1e-9):
     if largest == 0:
         return []
     keep = nonconstant & (size > rtol * largest)
-    omega = 2 * np.pi / (high - low)
+    omega = np.where(mixed, 2 * np.pi / MIXED_PERIOD, 2 * np.pi / (high - low))
     terms = []
     for row, c, s in zip(unique[keep], coef[keep], size[keep]):
         parts = [
-            _factor_text(state_names[i], int(p), bool(model.periodic_[i]), omega[i])
+            _factor_text(state_names[i], int(p), bool(model.periodic_[i]), omega[i],
+                         bool(mixed[i]))
             for i, p in enumerate(row)
         ]
         terms.append(HamiltonianTerm(float(c), tuple(int(p) for p in row),
@@ -265,14 +273,18 @@ def to_sympy(model, *, state_names=None, rtol=1e-9):
     terms = hamiltonian_terms(model, state_names=state_names, rtol=rtol)
     state_names = _state_names(model, state_names)
     symbols = sympy.symbols(list(state_names), real=True)
-    omega = 2 * np.pi / (model.domain_[:, 1] - model.domain_[:, 0])
+    mixed = _mixed(model)
+    omega = np.where(mixed, 2 * np.pi / MIXED_PERIOD,
+                     2 * np.pi / (model.domain_[:, 1] - model.domain_[:, 0]))
     expression = sympy.Integer(0)
     for term in terms:
         factor = sympy.Float(term.coefficient)
         for i, power in enumerate(term.powers):
             if power == 0:
                 continue
-            if not model.periodic_[i]:
+            if mixed[i] and power < 0:
+                power = int(code_frequency(power))  # as the signed frequency of an angle
+            elif not model.periodic_[i]:
                 factor *= symbols[i] ** power
                 continue
             frequency = abs(power) * omega[i]
@@ -283,3 +295,9 @@ def to_sympy(model, *, state_names=None, rtol=1e-9):
             factor *= sympy.cos(argument) if power > 0 else sympy.sin(argument)
         expression += factor
     return expression
+
+
+def _mixed(model):
+    """The model's mixed variables (none for a model fitted before they existed)."""
+    mixed = getattr(model, "mixed_", None)
+    return np.zeros(model.n_features_in_, dtype=bool) if mixed is None else np.asarray(mixed)

@@ -61,18 +61,19 @@ def unpack(ints, floats):
     Returns ``(tree, C, flat, snapshot)``: the tree and flat tuples of
     :func:`sk_hamiltonian._kernels.bound_kernels`, the bound coefficients
     and the coefficients they were bound from. The items are, in order, the
-    13 of the tree (0 to 12, the width a plain integer), the bound
-    coefficients (13), the 10 of the flat tuple (14 to 23, its flags as
-    integers) and the coefficients (24).
+    15 of the tree (0 to 14, the width a plain integer), the bound
+    coefficients (15), the 10 of the flat tuple (16 to 25, its flags as
+    integers) and the coefficients (26).
     """
     tree = (_ints(ints, 0), _ints(ints, 1), _floats(ints, floats, 2), _floats(ints, floats, 3),
             _ints(ints, 4), _ints(ints, 5), _ints(ints, 6), _ints(ints, 7), _ints(ints, 8),
-            _ints(ints, 9), ints[SLOTS * 10], _ints(ints, 11), _ints2(ints, 12))
-    C = _floats3(ints, floats, 13)
-    flat = (_ints(ints, 14) != 0, _ints2(ints, 15), _ints(ints, 16), _floats2(ints, floats, 17),
-            _ints2(ints, 18), _ints(ints, 19), _floats2(ints, floats, 20),
-            _ints2(ints, 21), _ints(ints, 22), _floats2(ints, floats, 23))
-    snapshot = _floats(ints, floats, 24)
+            _ints(ints, 9), ints[SLOTS * 10], _ints(ints, 11), _ints2(ints, 12),
+            _ints(ints, 13), _floats(ints, floats, 14))
+    C = _floats3(ints, floats, 15)
+    flat = (_ints(ints, 16) != 0, _ints2(ints, 17), _ints(ints, 18), _floats2(ints, floats, 19),
+            _ints2(ints, 20), _ints(ints, 21), _floats2(ints, floats, 22),
+            _ints2(ints, 23), _ints(ints, 24), _floats2(ints, floats, 25))
+    snapshot = _floats(ints, floats, 26)
     return tree, C, flat, snapshot
 
 

@@ -13,7 +13,8 @@ never over the zeros of the dense arrays.
 A *tree* is the tuple built by :func:`.tree.tree_arrays`::
 
     (family, degree, slope, offset, leaf_start, leaf_column, level_start,
-     level_parent, level_key, node_counts, width, level_pos, column_counts)
+     level_parent, level_key, node_counts, width, level_pos, column_counts,
+     trig_degree, trig_rate)
 
 and the coefficients are bound to it as a dense ``(width, K, n_prefixes)``
 array (:func:`sk_hamiltonian._kernels.bound_kernels`). The carried derivatives
@@ -29,14 +30,18 @@ from numba import njit
 
 
 @njit(cache=True, nogil=True)
-def fill_tables(x, family, degree, slope, offset, order, T):
-    """``T[i, r, c]``: r-th derivative of column c of variable i's family at ``x[i]``."""
+def fill_tables(x, family, degree, slope, offset, trig, rate, order, T):
+    """``T[i, r, c]``: r-th derivative of column c of variable i's family at ``x[i]``.
+
+    Family 0 is Legendre, 1 Fourier, 2 mixed: Legendre columns ``0..degree``,
+    then ``trig[i]`` Fourier frequencies at the angle ``rate[i] * x[i]``.
+    """
     m = x.shape[0]
     for i in range(m):
         s = slope[i]
         w = x[i] * s + offset[i]
         n = degree[i]
-        if family[i] == 0:
+        if family[i] != 1:
             T[i, 0, 0] = 1.0
             if n >= 1:
                 T[i, 0, 1] = w
@@ -51,22 +56,30 @@ def fill_tables(x, family, degree, slope, offset, order, T):
                     T[i, r, 1] = s if r == 1 else 0.0
                 for k in range(1, n):
                     T[i, r, k + 1] = T[i, r, k - 1] + ((2 * k + 1) * s) * T[i, r - 1, k]
+            if family[i] == 2:
+                _fill_fourier(x[i] * rate[i], rate[i], trig[i], n, order, T, i)
         else:
             T[i, 0, 0] = 1.0
             for r in range(1, order + 1):
                 T[i, r, 0] = 0.0
-            for k in range(1, n + 1):
-                angle = k * w
-                c = math.cos(angle)
-                sn = math.sin(angle)
-                T[i, 0, 2 * k - 1] = c
-                T[i, 0, 2 * k] = sn
-                if order >= 1:
-                    T[i, 1, 2 * k - 1] = -(k * sn) * s
-                    T[i, 1, 2 * k] = (k * c) * s
-                if order >= 2:
-                    T[i, 2, 2 * k - 1] = -(k * k * c) * (s * s)
-                    T[i, 2, 2 * k] = -(k * k * sn) * (s * s)
+            _fill_fourier(w, s, n, 0, order, T, i)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _fill_fourier(w, s, n, first, order, T, i):
+    """Columns ``first + 2k - 1`` and ``first + 2k``: cos and sin of ``k w``, ``k = 1..n``."""
+    for k in range(1, n + 1):
+        angle = k * w
+        c = math.cos(angle)
+        sn = math.sin(angle)
+        T[i, 0, first + 2 * k - 1] = c
+        T[i, 0, first + 2 * k] = sn
+        if order >= 1:
+            T[i, 1, first + 2 * k - 1] = -(k * sn) * s
+            T[i, 1, first + 2 * k] = (k * c) * s
+        if order >= 2:
+            T[i, 2, first + 2 * k - 1] = -(k * k * c) * (s * s)
+            T[i, 2, first + 2 * k] = -(k * k * sn) * (s * s)
 
 
 @njit(cache=True, nogil=True)
@@ -187,7 +200,7 @@ def contract_root(x, tree, C, flat, order, T, cur, nxt, pad):
     ``use[order]`` saying whether order ``order`` contracts flat (into the
     work array ``cur``, as the tree does).
     """
-    fill_tables(x, tree[0], tree[1], tree[2], tree[3], order, T)
+    fill_tables(x, tree[0], tree[1], tree[2], tree[3], tree[13], tree[14], order, T)
     if flat[0][order]:
         root = cur[:, :, 0]
         if order == 0:

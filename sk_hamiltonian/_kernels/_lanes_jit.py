@@ -38,11 +38,11 @@ from ._simulate_jit import _wrap
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _tables(X, first, n, family, degree, slope, offset, T, w):
+def _tables(X, first, n, family, degree, slope, offset, trig, rate, T, w):
     """``T[i, c, r, s]``: ``slope**r`` times the r-th derivative of column c of variable i at lane s.
 
     Lanes past the ``n`` states from ``first`` repeat the last state (their
-    results are not stored).
+    results are not stored). Families as in :func:`._jit.fill_tables`.
     """
     S = T.shape[3]
     R = T.shape[2]
@@ -52,7 +52,7 @@ def _tables(X, first, n, family, degree, slope, offset, T, w):
         for s in range(S):
             w[s] = X[first + min(s, n - 1), i] * s_i + offset[i]
         n_i = degree[i]
-        if family[i] == 0:
+        if family[i] != 1:
             # Legendre: the three-term recurrence and P'_{k+1} = P'_{k-1} +
             # (2k + 1) P_k (with the chain-rule factor), as in _jit.fill_tables.
             for s in range(S):
@@ -75,21 +75,33 @@ def _tables(X, first, n, family, degree, slope, offset, T, w):
                     f = (2 * k + 1) * s_i
                     for s in range(S):
                         T[i, k + 1, 1, s] = T[i, k - 1, 1, s] + f * T[i, k, 0, s]
+            if family[i] == 2:
+                r_i = rate[i]
+                for s in range(S):
+                    w[s] = X[first + min(s, n - 1), i] * r_i
+                _lane_fourier(w, r_i, trig[i], n_i, R, T, i)
         else:
             for s in range(S):
                 T[i, 0, 0, s] = 1.0
                 if R > 1:
                     T[i, 0, 1, s] = 0.0
-            for k in range(1, n_i + 1):
-                for s in range(S):
-                    angle = k * w[s]
-                    c = math.cos(angle)
-                    sn = math.sin(angle)
-                    T[i, 2 * k - 1, 0, s] = c
-                    T[i, 2 * k, 0, s] = sn
-                    if R > 1:
-                        T[i, 2 * k - 1, 1, s] = -(k * sn) * s_i
-                        T[i, 2 * k, 1, s] = (k * c) * s_i
+            _lane_fourier(w, s_i, n_i, 0, R, T, i)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _lane_fourier(w, s_i, n_i, first, R, T, i):
+    """Columns ``first + 2k - 1``, ``first + 2k``: cos and sin of ``k w`` at every lane."""
+    S = T.shape[3]
+    for k in range(1, n_i + 1):
+        for s in range(S):
+            angle = k * w[s]
+            c = math.cos(angle)
+            sn = math.sin(angle)
+            T[i, first + 2 * k - 1, 0, s] = c
+            T[i, first + 2 * k, 0, s] = sn
+            if R > 1:
+                T[i, first + 2 * k - 1, 1, s] = -(k * sn) * s_i
+                T[i, first + 2 * k, 1, s] = (k * c) * s_i
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -209,7 +221,7 @@ def evaluate(X, tree, children, leaf_coef, order, lanes, value, grad):
     T, w, leaf, cur, nxt = _work(tree, m, R, lanes)
     for first in range(0, n, lanes):
         count = min(lanes, n - first)
-        _tables(X, first, count, tree[0], tree[1], tree[2], tree[3], T, w)
+        _tables(X, first, count, tree[0], tree[1], tree[2], tree[3], tree[13], tree[14], T, w)
         root = _contract(T, tree, children, leaf_coef, leaf, cur, nxt)
         for s in range(count):
             value[first + s] = root[0, s]
@@ -239,7 +251,7 @@ def _field_lanes(Y, tree, children, leaf_coef, gamma, n, work, F):
     T, w, leaf, cur, nxt = work
     m = Y.shape[1]
     d = m // 2
-    _tables(Y, 0, n, tree[0], tree[1], tree[2], tree[3], T, w)
+    _tables(Y, 0, n, tree[0], tree[1], tree[2], tree[3], tree[13], tree[14], T, w)
     root = _contract(T, tree, children, leaf_coef, leaf, cur, nxt)
     for s in range(n):
         for i in range(d):

@@ -4,10 +4,11 @@ A model space's index set becomes a prefix tree (:mod:`sk_hamiltonian._space.tri
 the functions grouped by their first ``m - 1`` columns (the leaves, in
 compressed-row form: each prefix's functions and the column of their last
 variable), then one level per variable with each node's parent and column.
-The 1-D families become four arrays: family (0 Legendre, 1 Fourier), highest
-degree or frequency, and the affine map ``window = slope * x + offset`` of
+The 1-D families become four arrays: family (0 Legendre, 1 Fourier, 2 mixed),
+highest degree or frequency, and the affine map ``window = slope * x + offset`` of
 :class:`~sk_hamiltonian._space.tables.FactorTables`, so both paths read the
-same numbers.
+same numbers; two more give a mixed variable's highest Fourier frequency and
+its angle per unit of ``x``.
 
 The nodes of each level are numbered by their largest child key, largest
 first, and ``column_counts`` says how many of them have a child of each
@@ -20,7 +21,7 @@ of a degree-15 space in four variables are 3.4 times its 3 876 terms).
 
 import numpy as np
 
-from .._space.tables import _legendre
+from .._space.tables import _legendre, _mixed
 from .._space.trie import Level, prefix_ids
 
 INDEX = np.int64
@@ -34,7 +35,7 @@ def tree_arrays(space):
     tree : tuple
         ``(family, degree, slope, offset, leaf_start, leaf_column,
         level_start, level_parent, level_key, node_counts, width, level_pos,
-        column_counts)``; ``column_counts[0, c]`` prefixes have a leaf in
+        column_counts, trig_degree, trig_rate)``; ``column_counts[0, c]`` prefixes have a leaf in
         column ``c``, and ``column_counts[1 + L, c]`` parents of level ``L``
         a child of key ``c``, always the first ones.
     order : ndarray of shape (n_terms,)
@@ -45,9 +46,13 @@ def tree_arrays(space):
     degree = np.zeros(m, dtype=INDEX)
     slope = np.zeros(m)
     offset = np.zeros(m)
+    trig_degree = np.zeros(m, dtype=INDEX)
+    trig_rate = np.zeros(m)
     for kernel, n, _, rows, a, b in space.factor_tables.families:
         rows = np.arange(m) if rows is None else rows
-        family[rows] = 0 if kernel is _legendre else 1
+        family[rows] = 0 if kernel is _legendre else 2 if kernel is _mixed else 1
+        if kernel is _mixed:
+            (n, trig_degree[rows]), trig_rate[rows] = n, space.factor_tables.mixed_rate
         degree[rows] = n
         slope[rows] = a[:, 0]
         offset[rows] = b[:, 0]
@@ -85,7 +90,7 @@ def tree_arrays(space):
         # Each node's slot in its level's padded (column, parent) array.
         (cat(keys) * np.repeat(counts[1:], [p.size for p in parents]) + cat(parents)).astype(INDEX)
         if parents else np.zeros(0, dtype=INDEX),
-        column_counts,
+        column_counts, trig_degree, trig_rate,
     )
     return tree, order
 

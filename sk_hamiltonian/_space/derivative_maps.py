@@ -22,7 +22,9 @@ variable, so the Gram matrices cost ``n_states`` times fewer multiply-adds.
 import numpy as np
 from scipy import sparse
 
-from .fourier import fourier_derivative_matrix, fourier_frequency, period_to_angle
+from scipy.linalg import block_diag
+
+from .fourier import fourier_derivative_matrix, period_to_angle
 from .legendre import interval_to_window, legendre_derivative_matrix
 
 
@@ -69,8 +71,8 @@ class DerivativeMaps:
         entries, terms = np.concatenate(entries or [[]]), np.concatenate(terms or [[]])
         variables = np.concatenate(variables or [[]])
         self.n_values, self.n_terms = reached.shape[0], n_terms
-        powers = np.where(space.periodic, fourier_frequency(reached), reached)
-        self.value_space = type(space)(space.domain, powers, space.periodic)
+        powers = space.codes_of_columns(reached)
+        self.value_space = type(space)(space.domain, powers, space.periodic, space.mixed)
         self.maps_t = []
         for i in range(n_states):
             mine = variables == i
@@ -98,4 +100,10 @@ def _derivative_matrix(space, i):
         _, scale = period_to_angle(low, low, high)
         return fourier_derivative_matrix(space.fourier_degree) * scale
     _, scale = interval_to_window(low, low, high)
-    return legendre_derivative_matrix(space.legendre_degree) * scale
+    D = legendre_derivative_matrix(space.legendre_degree) * scale
+    if space.mixed[i]:
+        # Legendre columns first, then the Fourier ones without their
+        # constant (the Legendre P_0); angle rate 1 (period 2 pi).
+        trig = fourier_derivative_matrix(space.fourier_degree)[1:, 1:]
+        D = block_diag(D, trig * space.factor_tables.mixed_rate)
+    return D

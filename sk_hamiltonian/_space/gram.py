@@ -27,11 +27,24 @@ from .legendre import legendre_moments
 
 
 def _moments(space):
-    """Per variable: diagonal value moments, slope moments, and squared chain factors."""
+    """Per variable: diagonal value moments, slope moments, and squared chain factors.
+
+    A mixed variable's two families are not orthogonal to each other on its
+    interval: its moments are those of each family on its own (block
+    diagonal, the chain factors folded in), which makes the Gram matrix an
+    approximation there (good enough for a preconditioner).
+    """
     values, slopes, chain2 = [], [], []
     for i in range(space.n_states):
         low, high = space.domain[i]
-        if space.periodic[i]:
+        if space.mixed[i]:
+            v_leg, s_leg = legendre_moments(space.legendre_degree)
+            v_four, s_four = fourier_moments(space.fourier_degree)
+            rate2 = space.factor_tables.mixed_rate ** 2
+            v = linalg.block_diag(v_leg, v_four[1:, 1:])
+            s = linalg.block_diag(s_leg * (2 / (high - low)) ** 2, s_four[1:, 1:] * rate2)
+            chain2.append(1.0)
+        elif space.periodic[i]:
             v, s = fourier_moments(space.fourier_degree)
             chain2.append((2 * np.pi / (high - low)) ** 2)
         else:

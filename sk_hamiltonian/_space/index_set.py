@@ -16,6 +16,8 @@ from itertools import combinations
 
 import numpy as np
 
+from .mixed import factor_degrees, mixed_code
+
 
 def _positive_compositions(size, max_total):
     """Rows of ``size`` positive integers with sum at most ``max_total``."""
@@ -51,6 +53,7 @@ def index_set(
     max_interaction=None,
     couplings=None,
     include_constant=False,
+    mixed=None,
 ):
     """Multi-indices of a tensor-product space, in graded order.
 
@@ -77,13 +80,19 @@ def index_set(
         one variable always may). None: any variables may be coupled.
     include_constant : bool, default=False
         Whether the zero multi-index comes first.
+    mixed : ndarray of shape (n_states,) of bool, default=None
+        Which variables are mixed (:mod:`.mixed`): each non-zero degree ``k`` of
+        one of them gives three basis functions, the Legendre polynomial of
+        degree ``k``, ``cos(k x)`` and ``sin(k x)``, with the codes of
+        :mod:`.mixed`. None: no mixed variable.
 
     Returns
     -------
     powers : ndarray of shape (n_terms, n_states)
         One multi-index per row, ordered by degree, then by decreasing
-        ``|alpha_1|``, ``|alpha_2|``, ..., cosines before sines. On a total-degree
-        set without periodic variables this is the order of the paper's basis.
+        ``|alpha_1|``, ``|alpha_2|``, ..., Legendre factors before cosines
+        before sines. On a total-degree set without periodic variables this is
+        the order of the paper's basis.
     """
     periodic = np.zeros(n_states, dtype=bool) if periodic is None else np.asarray(periodic)
     largest = n_states if max_interaction is None else min(max_interaction, n_states)
@@ -105,8 +114,20 @@ def index_set(
         sines = powers[powers[:, i] != 0].copy()
         sines[:, i] *= -1
         powers = np.concatenate([powers, sines])
-    magnitude = np.abs(powers)
-    keys = tuple(powers[:, i] < 0 for i in reversed(range(n_states)))
+    # Each non-zero degree of a mixed variable also stands for a cosine and a sine.
+    mixed = np.zeros(n_states, dtype=bool) if mixed is None else np.asarray(mixed, dtype=bool)
+    for i in np.flatnonzero(mixed):
+        rows = powers[powers[:, i] != 0]
+        cosines, sines = rows.copy(), rows.copy()
+        cosines[:, i] = mixed_code(rows[:, i])
+        sines[:, i] = mixed_code(-rows[:, i])
+        powers = np.concatenate([powers, cosines, sines])
+    magnitude = factor_degrees(powers, mixed)
+    # The kind of each factor: 0 Legendre or cosine of an angle, 1 sine of an
+    # angle; for mixed variables 0 Legendre, 1 cosine, 2 sine.
+    kind = (powers < 0).astype(np.intp)
+    kind[:, mixed] += (powers[:, mixed] < 0) & (powers[:, mixed] % 2 == 0)
+    keys = tuple(kind[:, i] for i in reversed(range(n_states)))
     keys += tuple(-magnitude[:, i] for i in reversed(range(n_states)))
     order = np.lexsort(keys + (magnitude.sum(axis=1),))
     return powers[order]

@@ -17,7 +17,9 @@ sparse in it, so it is where a threshold decides which terms stay.
 import numpy as np
 from numpy.polynomial import Legendre, Polynomial
 from scipy import sparse
-from scipy.linalg import solve_triangular
+from scipy.linalg import block_diag, solve_triangular
+
+from .mixed import mixed_columns
 
 
 def legendre_to_monomials(degree, low, high):
@@ -81,6 +83,10 @@ class ReadableBasis:
         The box (one period for periodic variables).
     periodic : ndarray of shape (n_states,) of bool
         Which variables are periodic.
+    mixed : ndarray of shape (n_states,) of bool, default=None
+        Which variables are mixed (:mod:`.mixed`); their Fourier terms are
+        already readable (``cos(k x)``, ``sin(k x)``), their Legendre ones
+        become monomials. None: none.
 
     Attributes
     ----------
@@ -92,16 +98,30 @@ class ReadableBasis:
         function (its inverse, up to the constant).
     """
 
-    def __init__(self, powers, domain, periodic):
+    def __init__(self, powers, domain, periodic, mixed=None):
         powers = np.asarray(powers, dtype=np.intp)
         periodic = np.asarray(periodic, dtype=bool)
+        mixed = np.zeros(powers.shape[1], dtype=bool) if mixed is None else np.asarray(mixed, bool)
         # One dense 1-D table per variable (row: source entry, column: target
         # entry, both shifted by ``offsets``), fitting -> readable (forward)
         # and readable -> fitting (backward).
         forward, backward, offsets = [], [], []
+        entries = powers.copy()
         for i, (low, high) in enumerate(np.asarray(domain, dtype=float)):
             top = int(np.abs(powers[:, i]).max(initial=0))
-            if periodic[i]:
+            if mixed[i]:
+                # Legendre columns become monomials; the Fourier terms (angle
+                # 0 at x = 0) are readable as they are.
+                codes = powers[:, i]
+                degree = int(codes.max(initial=0))
+                n_trig = int(-codes.min(initial=0))
+                M = legendre_to_monomials(degree, low, high)
+                forward.append(block_diag(M, np.eye(n_trig)))
+                backward.append(block_diag(
+                    solve_triangular(M, np.eye(degree + 1), lower=True), np.eye(n_trig)))
+                entries[:, i] = mixed_columns(codes, degree)
+                offsets.append(0)
+            elif periodic[i]:
                 table = _angle_table(top, low, 2 * np.pi / (high - low))
                 # The 2 x 2 rotations are orthogonal: the inverse is the transpose.
                 forward.append(table)
@@ -117,7 +137,7 @@ class ReadableBasis:
                 # of 11 for the sparse Henon-Heiles model).
                 backward.append(solve_triangular(M, np.eye(top + 1), lower=True))
                 offsets.append(0)
-        shifted = powers + np.asarray(offsets, dtype=np.intp)
+        shifted = entries + np.asarray(offsets, dtype=np.intp)
         self.to_fitting = _tensor(shifted, backward).T.tocsc()
         self.from_fitting = _tensor(shifted, forward).T.tocsr()
 

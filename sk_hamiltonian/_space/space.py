@@ -18,7 +18,8 @@ from . import tensor
 from .contraction import ContractionPlan
 from .derivative_maps import DerivativeMaps
 from .flat import FlatPlan, choose_flat
-from .fourier import fourier_column, wrap_to_period
+from .fourier import fourier_column, fourier_frequency, wrap_to_period
+from .mixed import MIXED_PERIOD, factor_degrees, mixed_codes, mixed_columns
 from .tables import FactorTables
 
 # Up to this many entries, checks of states run on Python floats (see count_outside).
@@ -128,24 +129,37 @@ class ModelSpace:
         :func:`~sk_hamiltonian._space.index_set.index_set`.
     periodic : ndarray of shape (n_states,) of bool, default=None
         Which variables are periodic; None: none.
+    mixed : ndarray of shape (n_states,) of bool, default=None
+        Which variables are mixed (:mod:`.mixed`: Legendre polynomials on
+        their interval and Fourier terms of period ``2 pi``); None: none.
     """
 
-    def __init__(self, domain, powers, periodic=None):
+    def __init__(self, domain, powers, periodic=None, mixed=None):
         self.domain = np.asarray(domain, dtype=float)
         self.powers = np.asarray(powers, dtype=np.intp)
         n_states = self.domain.shape[0]
         self.periodic = (
             np.zeros(n_states, dtype=bool) if periodic is None else np.asarray(periodic, bool)
         )
+        self.mixed = np.zeros(n_states, dtype=bool) if mixed is None else np.asarray(mixed, bool)
+        # Factors of the Fourier family: every factor of a periodic variable,
+        # the negative codes of a mixed one.
+        trig = self.periodic | (self.mixed & (self.powers < 0))
+        magnitude = factor_degrees(self.powers, self.mixed)
+        self.legendre_degree = int(magnitude[~trig].max(initial=0))
+        self.fourier_degree = int(magnitude[trig].max(initial=0))
         #: Table column of every variable in every basis function.
-        self.columns = np.where(self.periodic, fourier_column(self.powers), np.abs(self.powers))
-        magnitude = np.abs(self.powers)
-        self.legendre_degree = int(magnitude[:, ~self.periodic].max(initial=0))
-        self.fourier_degree = int(magnitude[:, self.periodic].max(initial=0))
+        self.columns = np.where(self.periodic, fourier_column(self.powers), magnitude)
+        if self.mixed.any():
+            self.columns[:, self.mixed] = mixed_columns(
+                self.powers[:, self.mixed], self.legendre_degree)
         self.width = max(self.legendre_degree + 1, 2 * self.fourier_degree + 1)
+        if self.mixed.any():
+            self.width = max(self.width, self.legendre_degree + 2 * self.fourier_degree + 1)
         self.layout = tensor.SlotLayout(self.columns, self.width)
         self.factor_tables = FactorTables(
-            self.domain, self.periodic, self.legendre_degree, self.fourier_degree, self.width
+            self.domain, self.periodic, self.legendre_degree, self.fourier_degree, self.width,
+            self.mixed,
         )
         # Built on first use: (plan,), the flat plans by order, the
         # coefficient matrices of the last coefficients (cached_binding) and
@@ -182,20 +196,34 @@ class ModelSpace:
     @property
     def degree(self):
         """Largest total degree of a basis function."""
-        return int(np.abs(self.powers).sum(axis=1).max(initial=0))
+        return int(factor_degrees(self.powers, self.mixed).sum(axis=1).max(initial=0))
+
+    def codes_of_columns(self, columns):
+        """Multi-indices of table columns (the inverse of ``columns``, for any rows)."""
+        powers = np.where(self.periodic, fourier_frequency(columns), columns)
+        if self.mixed.any():
+            powers[:, self.mixed] = mixed_codes(columns[:, self.mixed], self.legendre_degree)
+        return powers
+
+    @property
+    def has_fourier(self):
+        """Whether some variable carries Fourier terms (periodic, or mixed with one)."""
+        return bool(self.periodic.any() or (self.mixed.any() and self.fourier_degree > 0))
 
     @property
     def phase_rates(self):
         """Radians per unit of each variable turned by the fastest factor.
 
         ``2 pi K / P`` for a periodic variable of period ``P`` in a space of
-        highest frequency ``K``, 0 for the others: along a segment from ``x0``
+        highest frequency ``K`` (``P = 2 pi`` for a mixed variable), 0 for
+        the others: along a segment from ``x0``
         to ``x1`` no trigonometric factor turns through more than
         ``phase_rates @ |x1 - x0|`` (what the quadrature of the segment needs,
         :func:`~sk_hamiltonian._design.quadrature_nodes`).
         """
-        period = self.domain[:, 1] - self.domain[:, 0]
-        return np.where(self.periodic, 2.0 * np.pi * self.fourier_degree / period, 0.0)
+        period = np.where(self.mixed, MIXED_PERIOD, self.domain[:, 1] - self.domain[:, 0])
+        return np.where(self.periodic | self.mixed, 2.0 * np.pi * self.fourier_degree / period,
+                        0.0)
 
     def wrap(self, X):
         """Wrap the periodic variables of ``X`` into their period (a copy)."""

@@ -1,7 +1,9 @@
 """1-D factor tables of a model space, laid out for the tensor kernels.
 
 A *factor table* holds, for every state variable, its 1-D family (Legendre on
-an interval, Fourier on a period) and the family's derivatives at every sample,
+an interval, Fourier on a period, or both for a mixed variable: Legendre
+columns first, then the Fourier ones, see :mod:`.mixed`) and the family's
+derivatives at every sample,
 already multiplied by the chain-rule factor of the variable's coordinate map.
 The kernels of :mod:`.tensor` and :mod:`.contraction` read them as arrays of
 shape ``(n_states + 1, width, n_samples)``: samples on the last, contiguous
@@ -21,6 +23,7 @@ from scipy.special import eval_legendre
 
 from .fourier import period_to_angle
 from .legendre import interval_to_window, legendre_derivative_matrix
+from .mixed import MIXED_PERIOD
 
 # Up to this many (sample, variable) points, one eval_legendre call; beyond,
 # the recurrence (measured crossover on one core: about 40 points at degree 15).
@@ -96,6 +99,20 @@ def _fourier(theta, degree, out, evaluation=False, chain=None):
         np.multiply(factor, s, out=out[r, :, 2::2])
 
 
+def _mixed(window, degrees, out, evaluation=False, chain=None, angle=None, rate=None):
+    """Fill ``out[r]`` with Legendre columns ``0..L`` at ``window``, then Fourier ones at ``angle``.
+
+    ``degrees`` is ``(L, K)``; ``rate`` (n_vars, 1, 1) is ``d angle / d x``. The
+    Fourier table's constant column is the Legendre ``P_0`` already there.
+    """
+    L, K = degrees
+    _legendre(window, L, out[:, :, : L + 1], evaluation, chain)
+    if K:
+        part = np.empty(out.shape[:2] + (2 * K + 1,) + out.shape[3:])
+        _fourier(angle, K, part, evaluation, rate)
+        out[:, :, L + 1 : L + 1 + 2 * K] = part[:, :, 1:]
+
+
 class FactorTables:
     """The factor tables of one model space, with its coordinate maps precomputed.
 
@@ -109,28 +126,37 @@ class FactorTables:
         Highest Legendre degree and Fourier frequency.
     width : int
         Columns per table.
+    mixed : ndarray of shape (n_states,) of bool, default=None
+        Which variables are mixed (:mod:`.mixed`); None: none.
     """
 
-    def __init__(self, domain, periodic, legendre_degree, fourier_degree, width):
+    def __init__(self, domain, periodic, legendre_degree, fourier_degree, width, mixed=None):
         self.n_states = domain.shape[0]
         self.width = width
+        mixed = np.zeros(self.n_states, dtype=bool) if mixed is None else mixed
         low, high = domain[:, 0], domain[:, 1]
         self.families = []
         for flags, family, to_window, degree in (
-            (~periodic, _legendre, interval_to_window, legendre_degree),
+            (~periodic & ~mixed, _legendre, interval_to_window, legendre_degree),
             (periodic, _fourier, period_to_angle, fourier_degree),
+            (mixed, _mixed, interval_to_window, (legendre_degree, fourier_degree)),
         ):
             if flags.any():
                 rows = np.flatnonzero(flags)
                 # The map is affine: window = slope * x + offset, computed as
                 # the family's own map does on the box's corners.
                 start, scale = to_window(low[rows], low[rows], high[rows])
-                columns = degree + 1 if family is _legendre else 2 * degree + 1
+                columns = {
+                    _legendre: lambda n: n + 1, _fourier: lambda n: 2 * n + 1,
+                    _mixed: lambda n: n[0] + 2 * n[1] + 1,
+                }[family](degree)
                 self.families.append((
                     family, degree, columns,
                     None if rows.size == self.n_states else rows,
                     scale[:, None], start[:, None] - scale[:, None] * low[rows, None],
                 ))
+        #: ``d angle / d x`` of the Fourier terms of mixed variables (angle ``0`` at ``x = 0``).
+        self.mixed_rate = 2.0 * np.pi / MIXED_PERIOD
 
     def __call__(self, X, n_derivatives=1, evaluation=False):
         """Tables at ``X`` (n_samples, n_states): ndarray (n_derivatives + 1, n_states + 1, width, n_samples).
@@ -149,12 +175,16 @@ class FactorTables:
         tables[0, m, 0] = 1.0
         for family, degree, columns, rows, slope, offset in self.families:
             chain = slope[:, :, None]
+            x = X.T if rows is None else X[:, rows].T
+            window = x * slope + offset
+            extra = {}
+            if family is _mixed:
+                rate = np.full_like(chain, self.mixed_rate)
+                extra = dict(angle=x * self.mixed_rate, rate=rate)
             if rows is None:
-                window = X.T * slope + offset
-                family(window, degree, tables[:, :m, :columns], evaluation, chain)
+                family(window, degree, tables[:, :m, :columns], evaluation, chain, **extra)
             else:
-                window = X[:, rows].T * slope + offset
                 target = np.empty((n_derivatives + 1, rows.size, columns, n_samples))
-                family(window, degree, target, evaluation, chain)
+                family(window, degree, target, evaluation, chain, **extra)
                 tables[:, rows, :columns] = target
         return tables

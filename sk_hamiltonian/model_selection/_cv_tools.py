@@ -1,22 +1,4 @@
-"""Cross-validation helpers: honest held-out scores and the one-standard-error rule.
-
-A pipeline ``make_pipeline(DerivativeTransformer(dt=dt), HamiltonianRegressor())``
-can be searched directly with :class:`~sklearn.model_selection.GridSearchCV`
-on the trajectory array: one sample is one trajectory, so the folds hold out
-whole trajectories, and the default score already compares rollouts with the
-held-out *observations* (see :meth:`~sk_hamiltonian.HamiltonianRegressor.score`).
-
-This module adds :func:`candidate_table`, which shows each candidate's mean
-score with its standard error and which candidates the data cannot tell
-from the best, :func:`multistep_scorer`, a held-out score from short
-predictions started at every observation, :func:`one_standard_error_rule`,
-a ``refit`` callable that prefers the smallest model whose score is within one
-standard error of the best, and :func:`segment_trajectories`, which cuts long
-records into segments with group labels, so that a few long records can be
-cross-validated like many short trajectories, and :func:`threshold_path`,
-each sparsity threshold's model size and cross-validated score, with the
-thresholds that tie with the best.
-"""
+"""Cross-validation helpers: candidate tables, the one-standard-error rule, scorers, segments."""
 
 import numbers
 
@@ -24,20 +6,10 @@ import numpy as np
 from sklearn.base import clone
 from sklearn.pipeline import Pipeline
 
-from ._base import BaseTrajectoryRegressor, is_trajectory_container
-from ._scoring import multistep_errors
-from ._threshold_path import threshold_path
-from ._trajectories import check_trajectories
-from ._vector_field import VectorFieldRegressor
-
-__all__ = [
-    "candidate_table",
-    "count_terms",
-    "multistep_scorer",
-    "one_standard_error_rule",
-    "segment_trajectories",
-    "threshold_path",
-]
+from .._base import BaseTrajectoryRegressor, is_trajectory_container
+from .._scoring import multistep_errors
+from .._trajectories import check_trajectories
+from .._vector_field import VectorFieldRegressor
 
 
 def _final_regressor(estimator):

@@ -12,8 +12,8 @@ from sklearn.pipeline import Pipeline
 from sklearn.utils import Bunch, _safe_indexing, indexable
 from sklearn.utils.parallel import Parallel, delayed
 
-from ._base import BaseTrajectoryRegressor
-from ._least_squares import CGNotConverged
+from .._base import BaseTrajectoryRegressor
+from .._least_squares import CGNotConverged
 
 
 def _threshold_parameter(estimator):
