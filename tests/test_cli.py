@@ -10,11 +10,11 @@ import sys
 import numpy as np
 import pytest
 
-import sk_hamiltonian.__main__ as sk_main
 from sk_hamiltonian import load
 from sk_hamiltonian.__main__ import main
-from sk_hamiltonian._datafiles import load_trajectories
-from sk_hamiltonian._report import UsageError
+from sk_hamiltonian._cli import fit as cli_fit
+from sk_hamiltonian._cli.datafiles import load_trajectories
+from sk_hamiltonian._cli.errors import UsageError
 from sk_hamiltonian.datasets import make_trajectories, single_pendulum
 
 pytest.importorskip("matplotlib")
@@ -399,7 +399,7 @@ def test_unwritable_output_fails_before_the_search(tmp_path, capsys, monkeypatch
 
     # What the operating system answers for a directory without write
     # permission (root ignores permission bits, so they cannot be used here).
-    monkeypatch.setattr(sk_main.tempfile, "mkstemp", refuse)
+    monkeypatch.setattr(cli_fit.tempfile, "mkstemp", refuse)
     with pytest.raises(SystemExit) as exit_info:
         main([str(path), "--dt", "0.02", "--output", str(out_dir)])
     out, err = capsys.readouterr()

@@ -1,39 +1,6 @@
-"""Pieces of the ``sk-hamiltonian`` command: its error type, printed lines and the figure."""
+"""The figure of the ``sk-hamiltonian`` report (report.png)."""
 
 import numpy as np
-
-
-from ._hamiltonian import TREND_Z
-
-
-class UsageError(Exception):
-    """A problem with the command line or the user's file: one line, exit code 2."""
-
-
-def describe_energy_trend(model):
-    """One line: the trend of the learned energy along the data, and what it suggests."""
-    rate, z = model.energy_trend_, model.energy_trend_z_
-    if not (np.isfinite(rate) and np.isfinite(z)):
-        return "energy trend of H~ along the data: not available (too few samples)"
-    if abs(z) <= TREND_Z:
-        verdict = (
-            f"within the noise (a trend counts from |z| > {TREND_Z:g}): the data look "
-            f"conservative"
-        )
-    elif z < 0:
-        verdict = (
-            "H~ falls along the data: they look dissipative (friction), which a conservative "
-            "model cannot follow; --damping (HamiltonianRegressor(damping=True)) can"
-        )
-    else:
-        verdict = (
-            "H~ rises along the data: they look driven, or the model misses part of the "
-            "dynamics"
-        )
-    return (
-        f"energy trend of H~ along the data: {rate:+.2%} of its spread per unit time "
-        f"(z = {z:.1f}): {verdict}"
-    )
 
 
 def draw_report(path, t, curves, truth, errors, model, rk4, avf, observed, names, title):
@@ -45,7 +12,7 @@ def draw_report(path, t, curves, truth, errors, model, rk4, avf, observed, names
     # A bare Figure, not pyplot: no GUI backend, no global state touched.
     from matplotlib.figure import Figure
 
-    from .plotting import plot_energy, plot_phase, plot_trajectories
+    from ..plotting import plot_energy, plot_phase, plot_trajectories
 
     fig = Figure(figsize=(11, 8), layout="constrained")
     axes = fig.subplots(2, 2)
