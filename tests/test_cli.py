@@ -653,3 +653,86 @@ def test_threshold_option(tmp_path, capsys, pendulum_data):
     assert "smaller terms" not in learned
     for bad in ("x", "-1", "nan", "2"):
         assert "--threshold" in error_of(base + ["--threshold", bad], capsys)
+
+
+# --------------------------------------------------------------------------
+# The report figure
+
+
+def _legends_on_data(fig):
+    """Titles of the axes whose legend overlaps the axes' own area."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    canvas = FigureCanvasAgg(fig)  # the command's bare Figure has no renderer of its own
+    canvas.draw()
+    renderer = canvas.get_renderer()
+    return [ax.get_title() for ax in fig.axes if ax.get_legend() is not None
+            and ax.get_legend().get_window_extent(renderer).overlaps(ax.get_window_extent())]
+
+
+@pytest.fixture
+def saved_figures(monkeypatch):
+    """The matplotlib Figures the command saves, kept for inspection."""
+    from matplotlib.figure import Figure
+
+    figures, savefig = [], Figure.savefig
+
+    def keep(self, *args, **kwargs):
+        figures.append(self)
+        return savefig(self, *args, **kwargs)
+
+    monkeypatch.setattr(Figure, "savefig", keep)
+    return figures
+
+
+def test_report_figure_legends_sit_off_the_data_and_a_window_is_zoomed(
+    tmp_path, capsys, pendulum_data, saved_figures
+):
+    path = tmp_path / "runs.npz"
+    np.savez(path, trajectories=pendulum_data)
+    status, out, _ = run(
+        [str(path), "--dt", "0.02", "--output", str(tmp_path), "--degrees", "4",
+         "--denoise-degrees", "fd"], capsys,
+    )
+    assert status == 0 and "up to T = 6 " in out
+    (fig,) = saved_figures
+    assert _legends_on_data(fig) == []
+    # Without a true system the rollouts are compared with the observations of
+    # the first trajectory (0.6 s of the 6 s span): that stretch is zoomed.
+    zoomed = [ax for ax in fig.axes if ax.get_title().startswith("zoom on t in [0, 0.6]")]
+    assert len(zoomed) == 1
+    assert zoomed[0].get_xlim() == pytest.approx((0.0, 0.6))
+    labels = {line.get_label() for line in zoomed[0].get_lines()}
+    assert {"p (SP)", "q (SP)", "p (non-SP)", "q (non-SP)"} <= labels
+
+
+def test_report_figure_against_the_truth_zooms_on_the_end(demo, tmp_path, saved_figures):
+    from sk_hamiltonian._cli.figure import draw_report
+
+    *_, out_dir = demo
+    model = load(out_dir / "model.skh")[-1]
+    system = single_pendulum()
+    t = 0.01 * np.arange(401)
+    x0 = np.asarray(system.initial_state)
+    truth = system.solve(x0, t, max_step=1e-3)
+    sp = (model.simulate(x0, t), len(t))
+    errors = {"SP": np.linalg.norm(sp[0] - truth, axis=1) / np.linalg.norm(truth, axis=1)}
+    # A baseline that runs away (as one reached 1e85 on a one-record file).
+    runaway = sp[0].copy()
+    runaway[300:] *= np.logspace(0, 80, 101)[:, None]
+    observed = (0.01 * np.arange(41), [truth[:41]])
+    draw_report(tmp_path / "r.png", t, {"SP": sp, "non-SP": (runaway, len(t))}, truth, errors,
+                model, sp, sp, observed, ["p", "q"], "title")
+    (fig,) = saved_figures
+    assert _legends_on_data(fig) == []
+    (zoomed,) = [ax for ax in fig.axes if ax.get_title().startswith("zoom on t in [3.5, 4]")]
+    assert zoomed.get_xlim() == pytest.approx((3.5, 4.0))  # the last eighth of [0, 4]
+    # The model's curve is drawn over a broad, pale true curve (both visible).
+    widths = {line.get_label(): line.get_linewidth() for line in zoomed.get_lines()}
+    assert widths["p (true)"] > 2 * widths["p (SP)"]
+    # The frame follows the truth and the SP model; the runaway leaves it, and
+    # the title says so (the pendulum's p stays within +-6 from u0*).
+    (full,) = [ax for ax in fig.axes if ax.get_title().startswith("trajectories")]
+    low, high = full.get_ylim()
+    assert -15 < low < -5 and 5 < high < 15
+    assert full.get_title().endswith("(non-SP runs off the frame)")

@@ -59,8 +59,9 @@ data files:
   dropped, with a note naming them.
 
 outputs (in --output, default ./sk_hamiltonian_output):
-  report.png    trajectories, phase plot, errors or energy, H~ drift
-                (needs matplotlib; skipped with a note without it)
+  report.png    trajectories (the whole span and a zoomed window), phase plot,
+                errors or energy, H~ drift (needs matplotlib; skipped with a
+                note without it)
   model.skh     the fitted Pipeline (DerivativeTransformer, HamiltonianRegressor)
                 in the safe model format (no pickle): load it with
                 sk_hamiltonian.load, or reuse it with the commands below
