@@ -11,6 +11,7 @@ from ..datasets import PAPER_DT, make_trajectories, single_pendulum
 from ..model_selection import segment_trajectories
 from .datafiles import load_trajectories
 from .errors import UsageError, check_positive
+from .words import counted
 
 EXAMPLE = dict(n_trajectories=500, n_intervals=40, noise=0.08, horizon=20.0)
 QUICK = dict(n_trajectories=60, n_intervals=40, noise=0.08, horizon=5.0)
@@ -66,7 +67,8 @@ def load_data(args):
             noise=setting["noise"], random_state=args.seed,
         )
         title = (
-            f"single pendulum (Example 1 of Wu, Qin & Xiu): {X.shape[0]} trajectories x "
+            f"single pendulum (Example 1 of Wu, Qin & Xiu): "
+            f"{counted(X.shape[0], 'trajectory', 'trajectories')} x "
             f"{X.shape[1]} samples, dt={dt:g}, +-{setting['noise']:.0%} noise"
         )
         return Data(
@@ -94,8 +96,8 @@ def load_data(args):
         else f"time stamps (median step {data.step:.4g})"
     )
     data.title = (
-        f"{args.data}: {len(lengths)} trajectories x {span} samples, {len(loaded.names)} "
-        f"states, {sampling}"
+        f"{args.data}: {counted(len(lengths), 'trajectory', 'trajectories')} x {span} samples, "
+        f"{len(loaded.names)} states, {sampling}"
     )
     return data
 

@@ -19,6 +19,7 @@ from .figure import draw_report
 from .parser import MODEL_FILE, check_options
 from .report import describe_energy_trend, print_choice, print_drift, print_errors
 from .search import run_search
+from .words import counted
 
 
 def run(args):
@@ -124,7 +125,7 @@ def _provenance(args, data, result):
     return {
         "data": data.title,
         "data_shape": (
-            f"{len(lengths)} trajectories x {min(lengths)}"
+            f"{counted(len(lengths), 'trajectory', 'trajectories')} x {min(lengths)}"
             + (f"-{max(lengths)}" if max(lengths) > min(lengths) else "")
             + f" samples x {len(data.names)} states"
         ),
@@ -144,7 +145,7 @@ def _fit_baseline(best, X):
     """The component-wise (non-SP) baseline at the chosen degrees, or None if it cannot fit."""
     baseline = make_pipeline(
         DerivativeTransformer(**best[0].get_params()),
-        VectorFieldRegressor(degree=best[-1].degree),
+        VectorFieldRegressor(degree=best[-1].degree, domain=best[-1].domain),
     )
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")

@@ -7,6 +7,7 @@ The sub-commands ``show`` and ``simulate`` have their own parsers
 import argparse
 import math
 
+from .. import __version__
 from .data import MIN_SAMPLES, SEGMENT_SAMPLES
 from .errors import UsageError
 
@@ -77,7 +78,9 @@ reuse a saved model:
                                   (and a figure); see
                                   'sk-hamiltonian simulate --help'
 
-exit status: 0 on success, 2 on a usage or data error (one-line message).
+exit status: 0 on success, 2 on a usage or data error (one-line message),
+  including a search in which every candidate failed to fit (the message
+  names the reason; e.g. a constant state variable needs --domain).
 
 examples:
   sk-hamiltonian
@@ -85,6 +88,7 @@ examples:
   python -m sk_hamiltonian runs.csv --dt 0.1 --denoise-degrees fd 4 6
   sk-hamiltonian record_with_times.csv --segment-length 60
   sk-hamiltonian damped.npz --dt 0.02 --damping
+  sk-hamiltonian fixed_momentum.npz --dt 0.02 --domain 0 1 --domain -3 3
   sk-hamiltonian show sk_hamiltonian_output/model.skh
   sk-hamiltonian simulate sk_hamiltonian_output/model.skh --x0 0.5 1 --t-end 20 -o run.csv
 
@@ -155,9 +159,19 @@ def build_parser():
         "%(default)s, every term kept)",
     )
     parser.add_argument(
+        "--domain", type=float, nargs=2, action="append", metavar=("LOW", "HIGH"),
+        help="the box on which H~ is fitted and trusted, one --domain per state variable in "
+        "the data's order (p_1..p_d, q_1..q_d) (HamiltonianRegressor(domain=...)); needed "
+        "when a variable is constant in the data (default: the data's bounding box)",
+    )
+    parser.add_argument(
         "--joblib", action="store_true",
         help="also write model.joblib (a pickle: loading it runs any code it carries; "
         f"share {MODEL_FILE} instead)",
+    )
+    parser.add_argument(
+        "--version", action="version", version=f"%(prog)s {__version__}",
+        help="print the version of sk_hamiltonian and exit",
     )
     # Small data and grid, for the test suite.
     parser.add_argument("--quick", action="store_true", help=argparse.SUPPRESS)
@@ -173,6 +187,24 @@ def check_options(args):
         raise UsageError(
             f"--segment-length must be at least {MIN_SAMPLES} samples; got {args.segment_length}"
         )
+
+
+def parse_domain(domain, names):
+    """The ``--domain`` intervals as ``[[low, high], ...]``, one per state; None if not given."""
+    if domain is None:
+        return None
+    if len(domain) != len(names):
+        raise UsageError(
+            f"--domain: give one --domain LOW HIGH per state variable ({', '.join(names)}), "
+            f"{len(names)} in all; got {len(domain)}"
+        )
+    for name, (low, high) in zip(names, domain):
+        if not (math.isfinite(low) and math.isfinite(high) and low < high):
+            raise UsageError(
+                f"--domain {low:g} {high:g} (for {name}): LOW and HIGH must be finite "
+                f"numbers with LOW < HIGH"
+            )
+    return [[float(low), float(high)] for low, high in domain]
 
 
 def parse_denoise(values):

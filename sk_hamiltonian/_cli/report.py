@@ -9,6 +9,7 @@ import numpy as np
 
 from .._hamiltonian import TREND_Z
 from ..model_selection import candidate_table
+from .words import counted
 
 
 def describe_energy_trend(model):
@@ -42,19 +43,27 @@ def print_choice(result):
     results, labels = result.cv_results, result.labels
     means, stds = results["mean_test_score"], results["std_test_score"]
     i, top = result.best_index, int(np.nanargmax(means))
+    # The term count is the refitted model's (after any threshold); another
+    # candidate's kept terms are unknown without fitting it, so none is given.
+    if len(labels) == 1:
+        rank = ", the only candidate"
+    elif top == i:
+        rank = ", the best mean score"
+    else:
+        rank = f"; best mean {means[top]:.4f} at {labels[top]}"
     print(
-        f"\nchosen: {labels[i]} -> "
-        f"{result.best[-1].n_terms_} terms (score {means[i]:.4f} +- {stds[i]:.4f}; "
-        f"best mean {means[top]:.4f} at {labels[top]}, "
-        f"{result.sizes[top]} terms)"
+        f"\nchosen: {labels[i]} -> {counted(result.best[-1].n_terms_, 'term')} "
+        f"(score {means[i]:.4f} +- {stds[i]:.4f}{rank})"
     )
+    if len(labels) == 1:
+        return
     table = candidate_table(results)
     others = [k for k in np.flatnonzero(table["tied"]) if k != i]
     if others:
         names = "; ".join(labels[k] for k in others[:4])
         more = f" and {len(others) - 4} more" if len(others) > 4 else ""
         print(
-            f"tied: {len(others)} other candidate{'s' if len(others) > 1 else ''} within one "
+            f"tied: {counted(len(others), 'other candidate')} within one "
             f"standard error of the best ({names}{more}): the cross-validation cannot tell "
             f"them apart, so this pick among them is partly chance"
         )

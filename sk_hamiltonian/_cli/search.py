@@ -5,13 +5,15 @@ Its boundary is :func:`run_search`: the command's options and data in, a
 search can take this one's place by returning the same fields.
 """
 
+import re
 import sys
 import time
 import warnings
 from collections import namedtuple
 
 import numpy as np
-from sklearn.model_selection import GridSearchCV, GroupKFold, KFold
+from sklearn.base import clone
+from sklearn.model_selection import GridSearchCV, GroupKFold, KFold, ParameterGrid
 from sklearn.pipeline import make_pipeline
 
 from .._derivatives import DerivativeTransformer
@@ -24,8 +26,10 @@ from .parser import (
     QUICK_DEGREES,
     QUICK_DENOISE,
     parse_denoise,
+    parse_domain,
     parse_threshold,
 )
+from .words import counted
 
 Q_KEY, N_KEY = "derivativetransformer__degree", "hamiltonianregressor__degree"
 METHOD_KEY = "derivativetransformer__method"
@@ -33,8 +37,7 @@ THRESHOLD_KEY = "hamiltonianregressor__threshold"
 
 SearchResult = namedtuple(
     "SearchResult",
-    ["best", "cv_results", "best_index", "labels", "sizes", "n_fits", "fit_time", "warned",
-     "summary"],
+    ["best", "cv_results", "best_index", "labels", "n_fits", "fit_time", "warned", "summary"],
 )
 SearchResult.__doc__ = """What a search hands to the report and the model file.
 
@@ -42,7 +45,6 @@ SearchResult.__doc__ = """What a search hands to the report and the model file.
 ``cv_results``: a ``cv_results_``-like dict (``params``, ``mean_test_score``,
 ``std_test_score``, ``split<k>_test_score``); ``best_index``: the chosen
 candidate's row in it; ``labels``: a short description per candidate;
-``sizes``: each candidate's number of terms before any threshold;
 ``n_fits``: the cross-validation fits run (the refit aside); ``fit_time``:
 seconds for the whole search with the refit; ``warned``: the sorted names of
 the warning categories the candidates raised; ``summary``: one line on how
@@ -59,25 +61,32 @@ def run_search(args, data):
     ----------
     args : argparse.Namespace
         The command's options (``--degrees``, ``--denoise-degrees``,
-        ``--threshold``, ``--cv``, ``--seed``, ``--damping``, ``--quick``).
+        ``--threshold``, ``--domain``, ``--cv``, ``--seed``, ``--damping``, ``--quick``).
     data : Data
         What to fit (``X``, ``dt``, ``groups``, ``names``, ``ids``).
 
     Returns
     -------
     result : SearchResult
+
+    Raises
+    ------
+    UsageError
+        If every cross-validation fit failed: one line with the reason.
     """
+    domain = parse_domain(args.domain, data.names)
     grid = _grid(args, data)
     n_candidates = sum(int(np.prod([len(v) for v in g.values()])) for g in grid)
     pipe = make_pipeline(
-        DerivativeTransformer(dt=data.dt), HamiltonianRegressor(damping=args.damping)
+        DerivativeTransformer(dt=data.dt),
+        HamiltonianRegressor(damping=args.damping, domain=domain),
     )
     if data.groups is None:
         folds, what = KFold(args.cv, shuffle=True, random_state=args.seed), "whole trajectories"
     else:
         folds, what = GroupKFold(args.cv), "contiguous segments"
     print(
-        f"search: {n_candidates} candidates x {args.cv} folds of {what}, "
+        f"search: {counted(n_candidates, 'candidate')} x {args.cv} folds of {what}, "
         f"score = rollouts vs held-out observations, refit = best mean score",
         flush=True,
     )
@@ -89,9 +98,18 @@ def run_search(args, data):
     start = time.perf_counter()
     # Poor candidates warn by the hundred (rollouts leaving the domain); the
     # report names the kinds once instead.
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        search.fit(data.X, groups=data.groups)
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            search.fit(data.X, groups=data.groups)
+    except ValueError as error:
+        # GridSearchCV's words when no fit succeeded, with every traceback.
+        failed = re.match(r"\s*All the (\d+) fits failed", str(error))
+        if failed is None:
+            raise
+        reason = _first_failure(pipe, grid, folds, data)
+        raise UsageError(_shared_failure(int(failed.group(1)), str(error), reason, data.names))\
+            from None
     fit_time = time.perf_counter() - start
     params = search.cv_results_["params"]
     return SearchResult(
@@ -99,15 +117,52 @@ def run_search(args, data):
         cv_results=search.cv_results_,
         best_index=int(search.best_index_),
         labels=[_describe(p) for p in params],
-        sizes=[count_terms(pipe, len(data.names), p) for p in params],
         n_fits=len(params) * args.cv,
         fit_time=fit_time,
         warned=sorted({w.category.__name__ for w in caught}),
         summary=(
-            f"GridSearchCV, {args.cv} folds of {what}, {len(params)} candidates, rollout "
-            f"score, refit = best mean"
+            f"GridSearchCV, {args.cv} folds of {what}, {counted(len(params), 'candidate')}, "
+            f"rollout score, refit = best mean"
         ),
     )
+
+
+def _first_failure(pipe, grid, folds, data):
+    """Why the first candidate failed on the first fold, from the exception itself.
+
+    GridSearchCV keeps only the formatted tracebacks; fitting that one
+    candidate again (deterministic, like every fit here) gives the message as
+    raised. None if it fits this time.
+    """
+    params = next(iter(ParameterGrid(grid)))
+    train, _ = next(folds.split(data.X, groups=data.groups))
+    X = data.X[train] if isinstance(data.X, np.ndarray) else [data.X[k] for k in train]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        try:
+            clone(pipe).set_params(**params).fit(X)
+        except Exception as error:  # noqa: BLE001 -- whatever it was, it is the reason
+            return str(error)
+    return None
+
+
+def _shared_failure(n_fits, message, reason, names):
+    """One line for a search in which every fit failed: how many, and why."""
+    n_reasons = message.count("fits failed with the following error:")
+    if reason is None:  # not reproduced: the last line of GridSearchCV's report
+        reason = message.strip().splitlines()[-1]
+    reason = " ".join(reason.split())
+    why = (
+        "with the same error" if n_reasons == 1
+        else f"{n_reasons} different errors; the first candidate's"
+    )
+    line = f"every candidate failed to fit ({n_fits} cross-validation fits, {why}): {reason}"
+    if "`domain`" in reason:
+        line += (
+            f" On the command line: one --domain LOW HIGH per state variable, in the order "
+            f"{', '.join(names)}."
+        )
+    return line
 
 
 def _grid(args, data):
