@@ -214,6 +214,8 @@ def format_hamiltonian(model, *, state_names=None, max_terms=8):
         # Two significant digits: "0.0%" would hide how small the rest is.
         text += (
             f" + ... ({len(rest)} smaller terms, each below {100 * share:.2g}% of the largest)"
+            if len(rest) > 1
+            else f" + ... (1 smaller term, below {100 * share:.2g}% of the largest)"
         )
     return "H~ = " + text + " + const"
 

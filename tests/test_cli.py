@@ -10,11 +10,11 @@ import sys
 import numpy as np
 import pytest
 
-import sk_hamiltonian.__main__ as sk_main
 from sk_hamiltonian import load
 from sk_hamiltonian.__main__ import main
-from sk_hamiltonian._datafiles import load_trajectories
-from sk_hamiltonian._report import UsageError
+from sk_hamiltonian._cli import fit as cli_fit
+from sk_hamiltonian._cli.datafiles import load_trajectories
+from sk_hamiltonian._cli.errors import UsageError
 from sk_hamiltonian.datasets import make_trajectories, single_pendulum
 
 pytest.importorskip("matplotlib")
@@ -241,7 +241,8 @@ def test_help_documents_the_options(capsys):
     assert exit_info.value.code == 0
     out = capsys.readouterr().out
     for option in ("--dt", "--output", "--degrees", "--denoise-degrees", "--cv", "--horizon",
-                   "--seed", "--damping", "--threshold", "--joblib", ".npz", ".csv", "model.skh",
+                   "--seed", "--damping", "--threshold", "--domain", "--version", "--joblib",
+                   ".npz", ".csv", "model.skh",
                    "model.joblib",
                    "runs any code", "report.png", "exit status", "show MODEL",
                    "simulate MODEL"):
@@ -369,6 +370,7 @@ def test_one_long_record_is_cut_into_segments_for_blocked_cv(tmp_path, capsys):
         "(the last of a record up to 63); blocked cross-validation" in out
     )
     assert "5 folds of contiguous segments" in out
+    assert "record.csv: 1 trajectory x 801 samples" in out  # not "1 trajectories"
     score = number(r"chosen: .* \(score (\S+) \+-", out)
     assert score > 0.9  # measured 0.98
     assert "up to T = 4" in out  # 10 x the median segment duration, about 0.4
@@ -399,7 +401,7 @@ def test_unwritable_output_fails_before_the_search(tmp_path, capsys, monkeypatch
 
     # What the operating system answers for a directory without write
     # permission (root ignores permission bits, so they cannot be used here).
-    monkeypatch.setattr(sk_main.tempfile, "mkstemp", refuse)
+    monkeypatch.setattr(cli_fit.tempfile, "mkstemp", refuse)
     with pytest.raises(SystemExit) as exit_info:
         main([str(path), "--dt", "0.02", "--output", str(out_dir)])
     out, err = capsys.readouterr()
@@ -653,3 +655,224 @@ def test_threshold_option(tmp_path, capsys, pendulum_data):
     assert "smaller terms" not in learned
     for bad in ("x", "-1", "nan", "2"):
         assert "--threshold" in error_of(base + ["--threshold", bad], capsys)
+
+
+# --------------------------------------------------------------------------
+# Issue 32's items for the command: shared fit failures, --domain, term
+# counts, the one-candidate case, --version, the figure
+
+
+def fixed_momentum_data(tmp_path):
+    """Free motion with one momentum for all: p = 0.5 is constant in the data."""
+    t = 0.02 * np.arange(31)
+    q0 = np.random.default_rng(0).uniform(-2, 2, 20)
+    X = np.stack([np.column_stack([np.full_like(t, 0.5), a + 0.5 * t]) for a in q0])
+    path = tmp_path / "fixed_momentum.npz"
+    np.savez(path, trajectories=X)
+    return path
+
+
+def test_a_failure_every_candidate_shares_is_one_line_and_domain_acts_on_it(tmp_path, capsys):
+    path = fixed_momentum_data(tmp_path)
+    base = [str(path), "--dt", "0.02", "--output", str(tmp_path), "--degrees", "4", "6",
+            "--denoise-degrees", "fd", "--cv", "3", "--horizon", "1"]
+    # error_of: exit code 2, no traceback, one line on stderr.
+    line = error_of(base, capsys)
+    assert "every candidate failed to fit (6 cross-validation fits, with the same error)" in line
+    assert "State variable(s) [0] are constant in the training data" in line
+    assert "one --domain LOW HIGH per state variable, in the order p, q" in line
+    status, out, _ = run(base + ["--domain", "0", "1", "--domain", "-3", "3"], capsys)
+    assert status == 0
+    model = load(tmp_path / "model.skh")
+    np.testing.assert_array_equal(model[-1].domain_, [[0.0, 1.0], [-3.0, 3.0]])
+    # The only motion in the data is dq/dt = dH/dp = 0.5 at p = 0.5.
+    np.testing.assert_allclose(model[-1].predict([[0.5, 0.0]])[0, 0], 0.0, atol=1e-8)
+
+
+@pytest.mark.parametrize(
+    "domain,message",
+    [(["--domain", "0", "1"], "give one --domain LOW HIGH per state variable (p, q), 2 in all; "
+                              "got 1"),
+     (["--domain", "1", "0", "--domain", "0", "1"], "--domain 1 0 (for p): LOW and HIGH must"),
+     (["--domain", "0", "1", "--domain", "0", "inf"], "--domain 0 inf (for q): LOW and HIGH")],
+)
+def test_domain_option_is_checked(tmp_path, capsys, pendulum_data, domain, message):
+    path = tmp_path / "runs.npz"
+    np.savez(path, trajectories=pendulum_data)
+    assert message in error_of([str(path), "--dt", "0.02", *domain], capsys)
+
+
+def test_version_option(capsys):
+    import sk_hamiltonian
+
+    with pytest.raises(SystemExit) as exit_info:
+        main(["--version"])
+    assert exit_info.value.code == 0
+    assert capsys.readouterr().out == f"sk-hamiltonian {sk_hamiltonian.__version__}\n"
+
+
+def test_one_candidate_reads_in_the_singular_and_claims_no_tie(tmp_path, capsys, pendulum_data):
+    path = tmp_path / "runs.npz"
+    np.savez(path, trajectories=pendulum_data)
+    status, out, err = run(
+        [str(path), "--dt", "0.02", "--output", str(tmp_path), "--degrees", "4",
+         "--denoise-degrees", "fd", "--horizon", "1"], capsys,
+    )
+    assert status == 0
+    assert "search: 1 candidate x 5 folds" in out and "1 candidates" not in out
+    assert re.search(r"chosen: finite differences, n=4 -> \d+ terms \(score \S+ \+- \S+, the "
+                     r"only candidate\)$", out, re.M), out
+    assert "no tie" not in out and "tied:" not in out
+    status, shown, _ = run(["show", str(tmp_path / "model.skh")], capsys)
+    assert "folds of whole trajectories, 1 candidate, rollout score" in shown
+
+
+def test_threshold_auto_reports_one_term_count_for_the_chosen_model(
+    tmp_path, capsys, pendulum_data
+):
+    path = tmp_path / "runs.npz"
+    np.savez(path, trajectories=pendulum_data)
+    status, out, _ = run(
+        [str(path), "--dt", "0.02", "--output", str(tmp_path), "--degrees", "6",
+         "--denoise-degrees", "fd", "--horizon", "1", "--threshold", "auto"], capsys,
+    )
+    assert status == 0
+    chosen = re.search(r"^chosen: .*$", out, re.M).group(0)
+    model = load(tmp_path / "model.skh")[-1]
+    assert model.threshold > 0 and model.n_terms_ < 27  # a sparse pick (measured: 4 of 27)
+    # Every count on the line is the chosen model's: no dense-space size beside it.
+    assert [int(n) for n in re.findall(r"(\d+) terms?\b", chosen)] == [model.n_terms_]
+
+
+def test_another_best_mean_is_named_without_a_term_count(capsys):
+    # A search whose pick is not the best mean (issue 33's tie-breaking may pick
+    # the smaller of tied candidates): the line names the best mean's candidate,
+    # not a term count it cannot know without fitting that candidate.
+    from types import SimpleNamespace
+
+    from sk_hamiltonian._cli.report import print_choice
+
+    results = {
+        "params": [{}, {}],
+        "split0_test_score": np.array([0.945, 0.95]),
+        "split1_test_score": np.array([0.965, 0.97]),
+        "mean_test_score": np.array([0.955, 0.96]),
+        "std_test_score": np.array([0.01, 0.01]),
+    }
+    best = [SimpleNamespace(n_terms_=1)]
+    print_choice(SimpleNamespace(cv_results=results, labels=["small", "large"], best_index=0,
+                                 best=best))
+    out = capsys.readouterr().out
+    assert "chosen: small -> 1 term (score 0.9550 +- 0.0100; best mean 0.9600 at large)" in out
+    assert "tied: 1 other candidate within one standard error of the best (large)" in out
+
+
+def test_one_smaller_term_reads_in_the_singular():
+    from sk_hamiltonian import HamiltonianRegressor
+    from sk_hamiltonian.inspection import format_hamiltonian, hamiltonian_terms
+
+    rng = np.random.default_rng(0)
+    X = rng.uniform(-1, 1, size=(200, 2))
+    y = np.column_stack([-X[:, 1] - X[:, 1] ** 3, X[:, 0]])  # H = p^2/2 + q^2/2 + q^4/4
+    model = HamiltonianRegressor(degree=4).fit(X, y)
+    shown = len(hamiltonian_terms(model)) - 1  # p^2, q^2 shown; q^4 left over
+    text = format_hamiltonian(model, max_terms=shown)
+    assert shown == 2
+    assert re.search(r" \+ \.\.\. \(1 smaller term, below \S+% of the largest\) \+ const$",
+                     text), text
+
+
+def test_failures_of_several_kinds_are_counted_in_the_line():
+    from sk_hamiltonian._cli.search import _shared_failure
+
+    block = "-" * 80 + "\n{} fits failed with the following error:\nTraceback ...\nValueError: {}"
+    message = "\nAll the 10 fits failed.\n" + "\n".join(
+        [block.format(6, "one"), block.format(4, "two")])
+    line = _shared_failure(10, message, "first\nreason", ["p", "q"])
+    assert line == ("every candidate failed to fit (10 cross-validation fits, 2 different "
+                    "errors; the first candidate's): first reason")
+    # Not reproduced when fitted again: GridSearchCV's last line stands in.
+    assert _shared_failure(10, message, None, ["p", "q"]).endswith("): ValueError: two")
+
+
+# --------------------------------------------------------------------------
+# The report figure
+
+
+def _legends_on_data(fig):
+    """Titles of the axes whose legend overlaps the axes' own area."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    canvas = FigureCanvasAgg(fig)  # the command's bare Figure has no renderer of its own
+    canvas.draw()
+    renderer = canvas.get_renderer()
+    return [ax.get_title() for ax in fig.axes if ax.get_legend() is not None
+            and ax.get_legend().get_window_extent(renderer).overlaps(ax.get_window_extent())]
+
+
+@pytest.fixture
+def saved_figures(monkeypatch):
+    """The matplotlib Figures the command saves, kept for inspection."""
+    from matplotlib.figure import Figure
+
+    figures, savefig = [], Figure.savefig
+
+    def keep(self, *args, **kwargs):
+        figures.append(self)
+        return savefig(self, *args, **kwargs)
+
+    monkeypatch.setattr(Figure, "savefig", keep)
+    return figures
+
+
+def test_report_figure_legends_sit_off_the_data_and_a_window_is_zoomed(
+    tmp_path, capsys, pendulum_data, saved_figures
+):
+    path = tmp_path / "runs.npz"
+    np.savez(path, trajectories=pendulum_data)
+    status, out, _ = run(
+        [str(path), "--dt", "0.02", "--output", str(tmp_path), "--degrees", "4",
+         "--denoise-degrees", "fd"], capsys,
+    )
+    assert status == 0 and "up to T = 6 " in out
+    (fig,) = saved_figures
+    assert _legends_on_data(fig) == []
+    # Without a true system the rollouts are compared with the observations of
+    # the first trajectory (0.6 s of the 6 s span): that stretch is zoomed.
+    zoomed = [ax for ax in fig.axes if ax.get_title().startswith("zoom on t in [0, 0.6]")]
+    assert len(zoomed) == 1
+    assert zoomed[0].get_xlim() == pytest.approx((0.0, 0.6))
+    labels = {line.get_label() for line in zoomed[0].get_lines()}
+    assert {"p (SP)", "q (SP)", "p (non-SP)", "q (non-SP)"} <= labels
+
+
+def test_report_figure_against_the_truth_zooms_on_the_end(demo, tmp_path, saved_figures):
+    from sk_hamiltonian._cli.figure import draw_report
+
+    *_, out_dir = demo
+    model = load(out_dir / "model.skh")[-1]
+    system = single_pendulum()
+    t = 0.01 * np.arange(401)
+    x0 = np.asarray(system.initial_state)
+    truth = system.solve(x0, t, max_step=1e-3)
+    sp = (model.simulate(x0, t), len(t))
+    errors = {"SP": np.linalg.norm(sp[0] - truth, axis=1) / np.linalg.norm(truth, axis=1)}
+    # A baseline that runs away (as one reached 1e85 on a one-record file).
+    runaway = sp[0].copy()
+    runaway[300:] *= np.logspace(0, 80, 101)[:, None]
+    observed = (0.01 * np.arange(41), [truth[:41]])
+    draw_report(tmp_path / "r.png", t, {"SP": sp, "non-SP": (runaway, len(t))}, truth, errors,
+                model, sp, sp, observed, ["p", "q"], "title")
+    (fig,) = saved_figures
+    assert _legends_on_data(fig) == []
+    (zoomed,) = [ax for ax in fig.axes if ax.get_title().startswith("zoom on t in [3.5, 4]")]
+    assert zoomed.get_xlim() == pytest.approx((3.5, 4.0))  # the last eighth of [0, 4]
+    # The model's curve is drawn over a broad, pale true curve (both visible).
+    widths = {line.get_label(): line.get_linewidth() for line in zoomed.get_lines()}
+    assert widths["p (true)"] > 2 * widths["p (SP)"]
+    # The frame follows the truth and the SP model; the runaway leaves it, and
+    # the title says so (the pendulum's p stays within +-6 from u0*).
+    (full,) = [ax for ax in fig.axes if ax.get_title().startswith("trajectories")]
+    low, high = full.get_ylim()
+    assert -15 < low < -5 and 5 < high < 15
+    assert full.get_title().endswith("(non-SP runs off the frame)")

@@ -1,5 +1,8 @@
 """Tests of the systems beyond the paper's five, and of the periodic flags."""
 
+import re
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -7,10 +10,12 @@ from sk_hamiltonian.datasets import (
     SCENES,
     SYSTEMS,
     HamiltonianSystem,
+    damped_pendulum,
     double_pendulum,
     fput_chain,
     load_system,
     make_trajectories,
+    single_pendulum,
     toda_lattice,
 )
 
@@ -367,7 +372,9 @@ def test_scenes_registry():
     assert set(SYSTEMS) == {
         "single_pendulum", "exponential", "henon_heiles", "cherry", "double_pendulum"
     }
-    assert set(SCENES) == {"double_pendulum_full_circle", "fput_chain", "toda_lattice"}
+    assert set(SCENES) == {
+        "damped_pendulum", "double_pendulum_full_circle", "fput_chain", "toda_lattice"
+    }
     for name, factory in SCENES.items():
         system = factory()
         assert isinstance(system, HamiltonianSystem) and system.name == name
@@ -380,6 +387,43 @@ def test_scenes_registry():
         assert repr(load_system(name, **system.params)) == repr(system)
     assert load_system("toda_lattice", n_particles=16, boundary="periodic").n_dof == 16
     assert load_system("double_pendulum_full_circle", g=1.0).params["g"] == 1.0
+
+
+def test_damped_pendulum_is_the_pendulum_with_friction():
+    system = damped_pendulum(0.2, length=1.5, g=9.0)
+    reference = single_pendulum(1.5, 9.0, damping=0.2)
+    assert repr(system) == repr(reference)
+    np.testing.assert_array_equal(system.damping, [0.2])
+    X = _points_in_domain(system, 6, seed=1)
+    np.testing.assert_array_equal(system.vector_field(X), reference.vector_field(X))
+    # Friction takes energy: dH/dt = -gamma (dq/dt)^2 = -gamma (p / l^2)^2 <= 0,
+    # so H falls step by step and loses exactly that integral (trapezoid rule
+    # on 2001 samples: relative error about 1e-6, so 1e-4 is the tolerance).
+    t = np.linspace(0.0, 5.0, 2001)
+    Y = system.solve(system.initial_state, t, max_step=1e-3)
+    H = system.hamiltonian(Y)
+    assert np.all(np.diff(H) < 0)
+    power = 0.2 * (Y[:, 0] / 1.5**2) ** 2
+    lost = np.sum((power[1:] + power[:-1]) / 2 * np.diff(t))
+    assert H[0] - H[-1] == pytest.approx(lost, rel=1e-4)
+
+
+@pytest.mark.parametrize("damping", [0.0, -0.1, np.inf, "0.1"])
+def test_damped_pendulum_needs_positive_friction(damping):
+    with pytest.raises(ValueError, match="damping must be a positive finite number"):
+        damped_pendulum(damping)
+
+
+def test_readme_lists_the_scenes_the_datasets_export():
+    # The README's feature list names the scenes beyond the paper: exactly the
+    # keys of SCENES, each of which load_system builds under that name.
+    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text()
+    line = re.search(r"scenes beyond the paper \(`SCENES`: (.*?)\)\.\n", readme, re.S)
+    assert line, "the README's datasets item no longer lists SCENES"
+    listed = re.findall(r"`(\w+)`", line.group(1))
+    assert sorted(listed) == sorted(SCENES)
+    for name in listed:
+        assert load_system(name).name == name
 
 
 def test_chain_repr_and_params():

@@ -340,6 +340,44 @@ def single_pendulum(length=1.0, g=9.8, *, damping=0.0):
     )
 
 
+def damped_pendulum(damping=0.1, *, length=1.0, g=9.8):
+    """The single pendulum with linear friction: a scene beyond the paper.
+
+    ``H(p, q) = p**2 / (2 l**2) + g l (1 - cos q)`` and
+    ``dp/dt = -dH/dq - gamma dq/dt``, so ``H`` falls along every trajectory
+    that moves. The same system as ``single_pendulum(length, g,
+    damping=damping)``, under the name that system carries.
+
+    Parameters
+    ----------
+    damping : float, default=0.1
+        Linear friction coefficient ``gamma > 0`` (for ``gamma = 0``, the
+        conservative pendulum, use :func:`single_pendulum`).
+    length : float, default=1.0
+        Length ``l`` of the pendulum.
+    g : float, default=9.8
+        Gravitational constant.
+
+    Returns
+    -------
+    system : HamiltonianSystem
+        Named ``"damped_pendulum"``; domain ``(-2 pi, 2 pi) x (-pi, pi)``,
+        ``u0* = (-3.876, -1.193)``, no ``paper_settings``.
+
+    Examples
+    --------
+    >>> from sk_hamiltonian.datasets import damped_pendulum
+    >>> damped_pendulum(0.2)
+    HamiltonianSystem(name='damped_pendulum', n_dof=1, length=1.0, g=9.8, damping=0.2)
+    """
+    if not (isinstance(damping, numbers.Real) and 0 < damping < math.inf):
+        raise ValueError(
+            f"damping must be a positive finite number, got {damping!r}; for the "
+            f"conservative pendulum use single_pendulum()."
+        )
+    return single_pendulum(length, g, damping=damping)
+
+
 def exponential(alpha1=1.0, alpha2=1.1):
     """Example 2: ``H(p, q) = exp(-alpha1 p**2 - alpha2 q**4)``.
 
@@ -790,6 +828,7 @@ SYSTEMS = {
 #: Systems beyond the paper's, by name; values are the factories. Each builds
 #: a system of that name.
 SCENES = {
+    "damped_pendulum": damped_pendulum,
     "double_pendulum_full_circle": functools.partial(double_pendulum, full_circle=True),
     "fput_chain": fput_chain,
     "toda_lattice": toda_lattice,
@@ -805,8 +844,8 @@ def load_system(name, **params):
         A key of :data:`SYSTEMS`, the paper's systems: ``"single_pendulum"``,
         ``"exponential"``, ``"henon_heiles"``, ``"cherry"`` or
         ``"double_pendulum"``; or of :data:`SCENES`, systems beyond the paper:
-        ``"double_pendulum_full_circle"``, ``"fput_chain"`` or
-        ``"toda_lattice"``.
+        ``"damped_pendulum"``, ``"double_pendulum_full_circle"``,
+        ``"fput_chain"`` or ``"toda_lattice"``.
     **params
         Parameters passed to the factory, e.g. ``length`` for the single
         pendulum or ``n_particles`` for the chains.

@@ -2,16 +2,15 @@
 
 import argparse
 import csv
-import math
 import os
 import warnings
 
 import numpy as np
 
-from ._datafiles import default_state_names
-from ._report import UsageError
-from .exceptions import DomainWarning, SimulationError
-from .io import ModelFileError, load, read_manifest
+from ..exceptions import DomainWarning, SimulationError
+from ..io import ModelFileError, load, read_manifest
+from .datafiles import default_state_names
+from .errors import UsageError, check_positive
 
 METHODS = ("rk4", "avf", "leapfrog", "yoshida4")
 # Output samples of a simulation when neither --dt nor a training step is known.
@@ -157,7 +156,7 @@ def show(argv):
         return 0
     names = _names(regressor)
     if hasattr(regressor, "hamiltonian"):
-        from .inspection import format_hamiltonian, hamiltonian_terms
+        from ..inspection import format_hamiltonian, hamiltonian_terms
 
         print(f"learned: {format_hamiltonian(regressor, state_names=names)}")
         terms = hamiltonian_terms(regressor, state_names=names)
@@ -191,17 +190,12 @@ def show(argv):
     return 0
 
 
-def _check_positive(option, value):
-    if value is not None and not (math.isfinite(value) and value > 0):
-        raise UsageError(f"{option} must be a positive finite number; got {value:g}")
-
-
 def simulate(argv):
     """``sk-hamiltonian simulate MODEL ...``: integrate a saved model, write CSV (+ figure)."""
     args = simulate_parser().parse_args(argv)
     for option, value in (("--t-end", args.t_end), ("--dt", args.dt),
                           ("--max-step", args.max_step)):
-        _check_positive(option, value)
+        check_positive(option, value)
     model, _ = _load(args.model)
     regressor = _regressor(model)
     if not hasattr(regressor, "coef_"):
@@ -292,7 +286,7 @@ def _write_csv(path, t, Y, names):
 def _draw(path, t, Y, names, regressor):
     from matplotlib.figure import Figure
 
-    from .plotting import plot_phase, plot_trajectories
+    from ..plotting import plot_phase, plot_trajectories
 
     fig = Figure(figsize=(11, 4), layout="constrained")
     left, right = fig.subplots(1, 2)

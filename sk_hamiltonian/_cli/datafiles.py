@@ -6,7 +6,7 @@ from collections import namedtuple
 
 import numpy as np
 
-from ._report import UsageError
+from .errors import UsageError
 
 #: Header names of a time column (right after ``trajectory`` in a CSV).
 TIME_NAMES = ("t", "time")

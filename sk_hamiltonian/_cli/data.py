@@ -1,0 +1,154 @@
+"""What the ``sk-hamiltonian`` command fits: the built-in example or a data file.
+
+Trajectories too short for a derivative are dropped (with a note naming
+them); records too few to fill the folds are cut into segments for blocked
+cross-validation.
+"""
+
+import numpy as np
+
+from ..datasets import PAPER_DT, make_trajectories, single_pendulum
+from ..model_selection import segment_trajectories
+from .datafiles import load_trajectories
+from .errors import UsageError, check_positive
+from .words import counted
+
+EXAMPLE = dict(n_trajectories=500, n_intervals=40, noise=0.08, horizon=20.0)
+QUICK = dict(n_trajectories=60, n_intervals=40, noise=0.08, horizon=5.0)
+# Fewest samples a trajectory needs for any derivative estimate.
+MIN_SAMPLES = 3
+# Segments of a record too long to cross-validate whole: the paper's
+# trajectory length (one de-noising polynomial each with the default window),
+# shortened so that every fold gets at least two segments.
+SEGMENT_SAMPLES = 41
+
+
+class Data:
+    """What the command fits and reports on.
+
+    ``X`` is what the pipeline gets (time stamps as first column when
+    ``stamped``); ``times`` and ``states`` are the same trajectories split;
+    ``dt`` is the transformer's step (None with time stamps), ``step`` the
+    (median) sampling step; ``groups`` the CV groups of segments (or None).
+    """
+
+    def __init__(self, X, names, ids, stamped, dt, title, system=None, horizon=None):
+        self.X, self.names, self.ids, self.stamped = X, names, ids, stamped
+        self.dt, self.title, self.system = dt, title, system
+        self.groups = None
+        self._split(horizon)
+
+    def _split(self, horizon=None):
+        if self.stamped:
+            self.times = [np.asarray(T)[:, 0] for T in self.X]
+            self.states = [np.asarray(T)[:, 1:] for T in self.X]
+        else:
+            self.times = [self.dt * np.arange(len(T)) for T in self.X]
+            self.states = [np.asarray(T) for T in self.X]
+        steps = np.concatenate([np.diff(t) for t in self.times])
+        self.step = self.dt if self.dt is not None else float(np.median(steps))
+        # By default, ten times the median duration over all trajectories.
+        self.horizon = horizon or 10.0 * float(np.median([t[-1] - t[0] for t in self.times]))
+
+    def use_segments(self, segments, ids, groups):
+        self.X, self.ids, self.groups = segments, ids, groups
+        self._split()
+
+
+def load_data(args):
+    """The data to fit, with their names, title, true system (or None) and horizon."""
+    if args.data is None:
+        setting = QUICK if args.quick else EXAMPLE
+        dt = PAPER_DT if args.dt is None else args.dt
+        check_positive("--dt", dt)
+        system = single_pendulum()
+        X = make_trajectories(
+            system, setting["n_trajectories"], setting["n_intervals"], dt,
+            noise=setting["noise"], random_state=args.seed,
+        )
+        title = (
+            f"single pendulum (Example 1 of Wu, Qin & Xiu): "
+            f"{counted(X.shape[0], 'trajectory', 'trajectories')} x "
+            f"{X.shape[1]} samples, dt={dt:g}, +-{setting['noise']:.0%} noise"
+        )
+        return Data(
+            X, ["p", "q"], [str(k) for k in range(len(X))], False, dt, title, system,
+            setting["horizon"],
+        )
+    if args.dt is not None:
+        check_positive("--dt", args.dt)
+    loaded = load_trajectories(args.data)
+    if loaded.stamped and args.dt is not None:
+        raise UsageError(
+            f"{args.data} carries time stamps; --dt would contradict them: drop --dt"
+        )
+    if not loaded.stamped and args.dt is None:
+        raise UsageError(
+            "--dt is required with a data file without time stamps: give the sampling "
+            "step, e.g. --dt 0.01, or add the times (see --help)"
+        )
+    X, ids = _drop_short(loaded.trajectories, loaded.ids, args.data)
+    lengths = [len(T) for T in X]
+    span = f"{min(lengths)}" + (f"-{max(lengths)}" if max(lengths) > min(lengths) else "")
+    data = Data(X, loaded.names, ids, loaded.stamped, args.dt, "")
+    sampling = (
+        f"dt={args.dt:g}" if not loaded.stamped
+        else f"time stamps (median step {data.step:.4g})"
+    )
+    data.title = (
+        f"{args.data}: {counted(len(lengths), 'trajectory', 'trajectories')} x {span} samples, "
+        f"{len(loaded.names)} states, {sampling}"
+    )
+    return data
+
+
+def _drop_short(X, ids, path):
+    """Drop trajectories too short for any derivative estimate, saying which."""
+    short = [k for k, T in enumerate(X) if len(T) < MIN_SAMPLES]
+    if not short:
+        return X, ids
+    if len(short) == len(X):
+        raise UsageError(
+            f"{path}: every trajectory has fewer than {MIN_SAMPLES} samples; time "
+            f"derivatives need at least {MIN_SAMPLES} per trajectory"
+        )
+    named = ", ".join(f"{ids[k]} ({len(X[k])} samples)" for k in short[:5])
+    more = f" and {len(short) - 5} more" if len(short) > 5 else ""
+    print(
+        f"note: dropped {len(short)} of {len(X)} trajectories with fewer than {MIN_SAMPLES} "
+        f"samples, from which no time derivative can be estimated: {named}{more}"
+    )
+    kept = [k for k in range(len(X)) if k not in set(short)]
+    X = [X[k] for k in kept]
+    if len({len(T) for T in X}) == 1:
+        X = np.stack(X)
+    return X, [ids[k] for k in kept]
+
+
+def segment_if_needed(args, data):
+    """Cut the trajectories into segments when they cannot fill the folds."""
+    if len(data.X) >= args.cv:
+        return data
+    total = sum(len(T) for T in data.X)
+    length = args.segment_length or min(SEGMENT_SAMPLES, total // (2 * args.cv))
+    if length < MIN_SAMPLES or total // length < args.cv:
+        raise UsageError(
+            f"{len(data.X)} trajectories of {total} samples in all cannot fill {args.cv} "
+            f"folds, even cut into segments of {max(length, MIN_SAMPLES)} samples: give more "
+            f"data, a lower --cv or a shorter --segment-length"
+        )
+    segments, groups = segment_trajectories(data.X, length, n_groups=args.cv)
+    ids = []
+    for label, T in zip(data.ids, data.X):
+        count = len(segment_trajectories([np.asarray(T)], length)[0])
+        ids.extend(f"{label}, segment {k}" for k in range(count))
+    n_records = len(data.X)
+    data.use_segments(segments, ids, groups)
+    longest = max(len(S) for S in segments)
+    print(
+        f"note: {n_records} {'trajectory' if n_records == 1 else 'trajectories'} cannot fill "
+        f"{args.cv} folds: cut into {len(segments)} segments of {length} samples"
+        + (f" (the last of a record up to {longest})" if longest > length else "")
+        + "; blocked cross-validation, each fold holds out a contiguous stretch of segments"
+    )
+    return data

@@ -1,0 +1,162 @@
+"""The fitting command: from the options to the report, the model file and the figure."""
+
+import os
+import tempfile
+import warnings
+
+import numpy as np
+from sklearn.pipeline import make_pipeline
+
+from .._derivatives import DerivativeTransformer
+from .._integrate import integrate
+from .._vector_field import VectorFieldRegressor
+from ..exceptions import DomainWarning
+from ..inspection import format_hamiltonian
+from ..io import save
+from .data import load_data, segment_if_needed
+from .errors import UsageError, check_positive
+from .figure import draw_report
+from .parser import MODEL_FILE, check_options
+from .report import describe_energy_trend, print_choice, print_drift, print_errors
+from .search import run_search
+from .words import counted
+
+
+def run(args):
+    """Fit, report, and write the model file (and the figure); returns the exit status."""
+    data = load_data(args)
+    check_options(args)
+    data = segment_if_needed(args, data)
+    horizon = args.horizon if args.horizon is not None else data.horizon
+    check_positive("--horizon", horizon)
+    _prepare_output(args.output)
+    print(f"data: {data.title}")
+    X, names = data.X, data.names
+    result = run_search(args, data)
+    best = result.best
+    model = best[-1]
+    print_choice(result)
+    print(f"learned: {format_hamiltonian(model, state_names=names)}")
+    print(
+        f"fit time: {result.fit_time:.1f} s for {result.n_fits} "
+        f"cross-validation fits and the refit"
+        + (f" (warnings of the candidates: {', '.join(result.warned)})" if result.warned
+           else "")
+    )
+    print(describe_energy_trend(model))
+    baseline = _fit_baseline(best, X)
+
+    system = data.system
+    x0 = np.asarray(system.initial_state if system is not None else data.states[0][0])
+    t = data.step * np.arange(int(round(horizon / data.step)) + 1)
+    origin = (
+        "u0* = (" + ", ".join(f"{v:g}" for v in x0) + ")" if system is not None
+        else "the first observation of the first trajectory"
+    )
+    print(f"\nsimulated from {origin} up to T = {t[-1]:g} (RK4 step {data.step:g}):")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # leaving the domain is reported as a failure
+        rk4, avf = _rollout(model, x0, t, "rk4"), _rollout(model, x0, t, "avf")
+        curves = {"SP": rk4}
+        if baseline is not None:
+            curves["non-SP"] = _rollout(baseline[-1], x0, t, "rk4")
+    truth, errors = None, {}
+    if system is not None:
+        truth = system.solve(x0, t, max_step=data.step / 10)
+        errors = print_errors(t, curves, truth)
+    with warnings.catch_warnings():
+        # Where the rollouts leave the training box was said above (or shows
+        # as a failure); evaluating H~ along them need not repeat it.
+        warnings.simplefilter("ignore", DomainWarning)
+        print_drift(t, model, {"RK4": rk4, "AVF": avf})
+
+    model_path = os.path.join(args.output, MODEL_FILE)
+    save(best, model_path, provenance=_provenance(args, data, result))
+    print(
+        f"\nmodel: {model_path} (a fitted Pipeline; sk-hamiltonian show {model_path}, or "
+        f"sk_hamiltonian.load in Python)"
+    )
+    if args.joblib:
+        import joblib
+
+        pickle_path = os.path.join(args.output, "model.joblib")
+        joblib.dump(best, pickle_path)
+        print(
+            f"model: {pickle_path} (--joblib; a pickle: loading it runs any code it carries, "
+            f"so load it only if you trust its source)"
+        )
+    try:
+        import matplotlib  # noqa: F401
+    except ImportError:
+        print("figure: skipped, matplotlib is not installed (pip install matplotlib)")
+        return 0
+    figure_path = os.path.join(args.output, "report.png")
+    observed = (data.times[0] - data.times[0][0], data.states)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DomainWarning)
+        draw_report(
+            figure_path, t, curves, truth, errors, model, rk4, avf, observed, names, data.title
+        )
+    print(f"figure: {figure_path}")
+    return 0
+
+
+def _prepare_output(directory):
+    """Create the output directory and check, up front, that files can be written there."""
+    try:
+        os.makedirs(directory, exist_ok=True)
+    except OSError as error:
+        raise UsageError(f"cannot create the output directory {directory}: {error}") from None
+    try:
+        handle, probe = tempfile.mkstemp(dir=directory, prefix=".sk-hamiltonian-probe-")
+        os.close(handle)
+        os.remove(probe)
+    except OSError as error:
+        raise UsageError(
+            f"cannot write to the output directory {directory} ({error.strerror or error}): "
+            f"choose another one with --output"
+        ) from None
+
+
+def _provenance(args, data, result):
+    """What the model file records about the data and the search."""
+    lengths = [len(T) for T in data.X]
+    i = result.best_index
+    return {
+        "data": data.title,
+        "data_shape": (
+            f"{counted(len(lengths), 'trajectory', 'trajectories')} x {min(lengths)}"
+            + (f"-{max(lengths)}" if max(lengths) > min(lengths) else "")
+            + f" samples x {len(data.names)} states"
+        ),
+        "state_names": list(data.names),
+        "fit_time_s": round(result.fit_time, 3),
+        "cv": result.summary,
+        "cv_choice": result.labels[i],
+        "cv_score": (
+            f"{result.cv_results['mean_test_score'][i]:.4f} +- "
+            f"{result.cv_results['std_test_score'][i]:.4f} over the folds"
+        ),
+        "damping": bool(args.damping),
+    }
+
+
+def _fit_baseline(best, X):
+    """The component-wise (non-SP) baseline at the chosen degrees, or None if it cannot fit."""
+    baseline = make_pipeline(
+        DerivativeTransformer(**best[0].get_params()),
+        VectorFieldRegressor(degree=best[-1].degree, domain=best[-1].domain),
+    )
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        try:
+            return baseline.fit(X)
+        except ValueError as error:  # e.g. more unknowns than data at this degree
+            print(f"note: non-SP baseline not fitted: {error}")
+            return None
+
+
+def _rollout(model, x0, t, method):
+    """Simulate, keeping what precedes a failure; return (states, n_valid_times)."""
+    Y, failed_at = integrate(model._integrator(method), x0[None], t, None)
+    return Y[:, 0], int(failed_at[0])

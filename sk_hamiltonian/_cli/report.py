@@ -1,0 +1,100 @@
+"""The printed lines of the ``sk-hamiltonian`` report.
+
+Nothing here knows how the search ran: the choice is read from a
+:class:`~sk_hamiltonian._cli.search.SearchResult` (the refitted pipeline, a
+``cv_results_``-like dict, the chosen index and the candidates' labels).
+"""
+
+import numpy as np
+
+from .._hamiltonian import TREND_Z
+from ..model_selection import candidate_table
+from .words import counted
+
+
+def describe_energy_trend(model):
+    """One line: the trend of the learned energy along the data, and what it suggests."""
+    rate, z = model.energy_trend_, model.energy_trend_z_
+    if not (np.isfinite(rate) and np.isfinite(z)):
+        return "energy trend of H~ along the data: not available (too few samples)"
+    if abs(z) <= TREND_Z:
+        verdict = (
+            f"within the noise (a trend counts from |z| > {TREND_Z:g}): the data look "
+            f"conservative"
+        )
+    elif z < 0:
+        verdict = (
+            "H~ falls along the data: they look dissipative (friction), which a conservative "
+            "model cannot follow; --damping (HamiltonianRegressor(damping=True)) can"
+        )
+    else:
+        verdict = (
+            "H~ rises along the data: they look driven, or the model misses part of the "
+            "dynamics"
+        )
+    return (
+        f"energy trend of H~ along the data: {rate:+.2%} of its spread per unit time "
+        f"(z = {z:.1f}): {verdict}"
+    )
+
+
+def print_choice(result):
+    """The chosen candidate, its score, and whether other candidates tie with it."""
+    results, labels = result.cv_results, result.labels
+    means, stds = results["mean_test_score"], results["std_test_score"]
+    i, top = result.best_index, int(np.nanargmax(means))
+    # The term count is the refitted model's (after any threshold); another
+    # candidate's kept terms are unknown without fitting it, so none is given.
+    if len(labels) == 1:
+        rank = ", the only candidate"
+    elif top == i:
+        rank = ", the best mean score"
+    else:
+        rank = f"; best mean {means[top]:.4f} at {labels[top]}"
+    print(
+        f"\nchosen: {labels[i]} -> {counted(result.best[-1].n_terms_, 'term')} "
+        f"(score {means[i]:.4f} +- {stds[i]:.4f}{rank})"
+    )
+    if len(labels) == 1:
+        return
+    table = candidate_table(results)
+    others = [k for k in np.flatnonzero(table["tied"]) if k != i]
+    if others:
+        names = "; ".join(labels[k] for k in others[:4])
+        more = f" and {len(others) - 4} more" if len(others) > 4 else ""
+        print(
+            f"tied: {counted(len(others), 'other candidate')} within one "
+            f"standard error of the best ({names}{more}): the cross-validation cannot tell "
+            f"them apart, so this pick among them is partly chance"
+        )
+    else:
+        print("no tie: every other candidate scores more than one standard error below")
+
+
+def print_errors(t, curves, truth):
+    """Each rollout's relative error against the true system; returns the error curves."""
+    norms = np.linalg.norm(truth, axis=1)
+    errors = {}
+    for label, (Y, ok) in curves.items():
+        e = np.full(t.shape, np.nan)
+        e[:ok] = np.linalg.norm(Y[:ok] - truth[:ok], axis=1) / norms[:ok]
+        errors[label] = e
+        if ok < t.shape[0]:
+            print(f"  {label:7s} relative error at T: failed (blew up at t = {t[ok]:g})")
+        else:
+            print(
+                f"  {label:7s} relative error at T: {e[-1]:.3g} "
+                f"(mean over [0, T]: {np.mean(e):.3g})"
+            )
+    return errors
+
+
+def print_drift(t, model, runs):
+    """The drift of the learned energy along each rollout."""
+    for label, (Y, ok) in runs.items():
+        if ok < 2:
+            print(f"  H~ drift, {label}: the simulation failed at the first step")
+            continue
+        H = model.hamiltonian(Y[:ok])
+        tail = "" if ok == t.shape[0] else f" (until it failed at t = {t[ok]:g})"
+        print(f"  H~ drift max|H~(t) - H~(0)|, {label}: {np.max(np.abs(H - H[0])):.2g}{tail}")
