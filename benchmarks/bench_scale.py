@@ -79,7 +79,7 @@ import numpy as np  # noqa: E402
 from threadpoolctl import threadpool_info, threadpool_limits  # noqa: E402
 
 from sk_hamiltonian import DerivativeTransformer, HamiltonianRegressor, config_context  # noqa: E402
-from sk_hamiltonian._kernels import numba_available  # noqa: E402
+from sk_hamiltonian._numba import numba_available  # noqa: E402
 from sk_hamiltonian._design import quadrature_nodes  # noqa: E402
 from sk_hamiltonian._design_operator import DesignOperator  # noqa: E402
 from sk_hamiltonian.datasets import load_system, make_trajectories  # noqa: E402

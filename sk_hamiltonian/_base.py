@@ -14,7 +14,7 @@ from sklearn.utils.validation import _check_sample_weight, check_is_fitted, vali
 
 from ._design import TrainingData
 from ._integrate import integrate, make_integrator, raise_on_failure
-from ._kernels.threads import gram_flops, limit_blas
+from ._threads import gram_flops, limit_blas
 from ._least_squares import (
     CGNotConverged,
     LeastSquaresProblem,

@@ -4,16 +4,17 @@ import warnings
 
 import numpy as np
 
-from . import _kernels
 from ._base import DOMAIN_SLACK, BaseTrajectoryRegressor
 from ._config import use_numba
 from ._conservation import decorrelated, energy_trend
 from ._design import column_groups, hamiltonian_blocks, quadrature_nodes, value_blocks
 from ._factored import FactoredNormalEquations
 from ._design_operator import DesignOperator
-from ._integrate import Dynamics, apply_structure
-from ._kernels.simulate import KernelModel
-from ._space import ModelSpace
+from ._integrate import Dynamics
+from ._integrate.compiled import KernelModel
+from ._kernels import LANE_ROWS
+from ._space import ModelSpace, compiled
+from ._structure import apply_structure
 from ._trajectories import check_n_states
 from .exceptions import ConservationWarning
 
@@ -398,7 +399,7 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
         # one call; anything else, and any state that is not finite, goes the
         # general way.
         if not (use_numba() and type(X) is np.ndarray and X.dtype == np.float64 and X.ndim == 2
-                and 0 < X.shape[0] < _kernels.LANE_ROWS and X.shape[1] == self.n_features_in_
+                and 0 < X.shape[0] < LANE_ROWS and X.shape[1] == self.n_features_in_
                 and X.flags.c_contiguous and not hasattr(self, "feature_names_in_")):
             return None
         # The fitted attributes as fit left them (the kernel does not check
@@ -408,13 +409,13 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
         if not (_plain(coef, (self._eval_space.n_terms,)) and _plain(damping, (m // 2,))
                 and _plain(domain, (m, 2)) and _plain(periodic, (m,), np.bool_)):
             return None
-        return _kernels.checked_field(self._eval_space, X, coef, damping, domain, periodic,
+        return compiled.checked_field(self._eval_space, X, coef, damping, domain, periodic,
                                       DOMAIN_SLACK)
 
     def _vector_field(self, X):
         if use_numba():
             # One compiled pass with the structure applied (zero damping is none).
-            return _kernels.field(self._eval_space, X, self._eval_coef, self.damping_)
+            return compiled.field(self._eval_space, X, self._eval_coef, self.damping_)
         return apply_structure(self._gradient(X), self._damping())
 
     def _jacobian(self, X):

@@ -30,7 +30,7 @@ The embedding is drawn from a fixed seed, so that a fit is reproducible.
 import numpy as np
 from scipy.linalg import blas
 
-from ._kernels.threads import gram_flops, limit_blas
+from ._threads import gram_flops, limit_blas
 from ._solvers import mirror_upper
 
 # Rows of the sketch per column of the design. A sketch of r n rows leaves

@@ -46,7 +46,7 @@ from scipy import linalg
 from scipy.linalg import blas
 from sklearn.exceptions import ConvergenceWarning
 
-from ._kernels.threads import gram_flops, limit_blas
+from ._threads import gram_flops, limit_blas
 from .exceptions import IllConditionedWarning
 
 # Designs up to this many entries (400 MB in float64) are factorized whole by

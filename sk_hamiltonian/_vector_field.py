@@ -6,7 +6,7 @@ from ._base import BaseTrajectoryRegressor
 from ._design import quadrature_nodes, vector_field_blocks
 from ._design_operator import DesignOperator
 from ._integrate import Dynamics
-from ._kernels.simulate import KernelModel
+from ._integrate.compiled import KernelModel
 
 
 class VectorFieldRegressor(BaseTrajectoryRegressor):

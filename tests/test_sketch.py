@@ -19,7 +19,7 @@ from sklearn.exceptions import ConvergenceWarning
 from sk_hamiltonian import DerivativeTransformer, HamiltonianRegressor
 from sk_hamiltonian._design import quadrature_nodes
 from sk_hamiltonian._design_operator import DesignOperator
-from sk_hamiltonian._kernels import threads
+from sk_hamiltonian import _threads as threads
 from sk_hamiltonian._sketch import DesignSketch
 from sk_hamiltonian.datasets import henon_heiles, make_trajectories
 

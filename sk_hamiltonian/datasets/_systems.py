@@ -15,7 +15,8 @@ import numbers
 
 import numpy as np
 
-from .._integrate import RK4, apply_structure, integrate, raise_on_failure
+from .._integrate import RK4, integrate, raise_on_failure
+from .._structure import apply_structure
 
 #: Sampling step of the trajectory data in the examples reproducing the paper.
 #: The paper does not state it; with 0.01 the O(dt**2) error of second-order
