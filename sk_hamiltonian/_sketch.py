@@ -49,7 +49,7 @@ SKETCH_SEED = 0
 class DesignSketch:
     """``S A`` accumulated over row blocks of a design, ``S`` a CountSketch.
 
-    The counterpart of :class:`~sk_hamiltonian._solvers.NormalEquations`
+    The counterpart of :class:`~sk_hamiltonian._solvers.normal.NormalEquations`
     for ``solver="sketch"``: the same blocks and column groups, but one pass
     of additions per block instead of a rank-k update.
 
