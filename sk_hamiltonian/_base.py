@@ -1,4 +1,7 @@
-"""What the two regressors share: input handling, model space, simulation and scoring."""
+"""What the two regressors share: input handling, model space, simulation and scoring.
+
+Simulation's checks, defaults and run are in :mod:`._integrate.simulation`.
+"""
 
 import copy
 import operator
@@ -13,7 +16,7 @@ from sklearn.utils._param_validation import Interval, InvalidParameterError, Str
 from sklearn.utils.validation import _check_sample_weight, check_is_fitted, validate_data
 
 from ._design import TrainingData
-from ._integrate import integrate, make_integrator, raise_on_failure
+from ._integrate import make_integrator, simulation
 from ._threads import gram_flops, limit_blas
 from ._least_squares import (
     CGNotConverged,
@@ -40,13 +43,6 @@ DOMAIN_SLACK = 1e-9
 # derivatives by 2 / width, Hessians and Gram products by its square, and
 # 1e200 leaves room for both below overflow (1.8e308).
 THINNEST_DOMAIN = 1e-100
-# Default integration step as a fraction of the learned system's time scale
-# 1 / rho (rho: spectral radius of its Jacobian over the training states):
-# the global error of RK4 then stays near (0.1)**4 / 120 per unit of rho * t,
-# that of the second-order methods near (0.02)**2 / 12.
-STEP_FRACTION = {"rk4": 0.1, "yoshida4": 0.1, "avf": 0.02, "leapfrog": 0.02}
-# Training states at which the Jacobian is evaluated for the time scale.
-TIME_SCALE_SAMPLES = 256
 
 
 def is_trajectory_container(X):
@@ -56,18 +52,6 @@ def is_trajectory_container(X):
     if isinstance(X, (list, tuple)) and len(X) > 0:
         return np.ndim(X[0]) == 2
     return False
-
-
-def check_time(t):
-    """Validate output times: 1-D, finite, strictly increasing."""
-    t = np.asarray(t, dtype=float)
-    if t.ndim != 1 or t.size < 1:
-        raise ValueError(f"t must be a non-empty 1-D array of times; got shape {t.shape}.")
-    if not np.isfinite(t).all():
-        raise ValueError("t contains NaN or infinity.")
-    if np.any(np.diff(t) <= 0):
-        raise ValueError("t must be strictly increasing.")
-    return t
 
 
 def _is_dask(X):
@@ -274,8 +258,8 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
         self._state_magnitude = (
             np.sqrt(np.mean(data.states**2, axis=0)) if magnitude is None else magnitude
         )
-        self.time_scale_ = self._time_scale(
-            data.states if time_scale_states is None else time_scale_states
+        self.time_scale_ = simulation.time_scale(
+            self._jacobian, data.states if time_scale_states is None else time_scale_states
         )
         self._after_fit(data)
 
@@ -593,18 +577,6 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
         # A constant variable (possible with an explicit domain) keeps unit scale.
         return np.where(scale > 0, scale, 1.0)
 
-    def _time_scale(self, states):
-        """``1 / rho``, rho the 90th percentile of the Jacobian's spectral radius."""
-        jacobian = self._jacobian(states[:: max(1, states.shape[0] // TIME_SCALE_SAMPLES)])
-        if jacobian is None:
-            return float("nan")
-        jacobian = jacobian[np.isfinite(jacobian).all(axis=(1, 2))]
-        with np.errstate(all="ignore"):
-            radius = np.abs(np.linalg.eigvals(jacobian)).max(axis=1)
-        radius = radius[np.isfinite(radius)]
-        rho = float(np.percentile(radius, 90)) if radius.size else 0.0
-        return 1.0 / rho if rho > 0 else float("inf")
-
     # ------------------------------------------------------------ evaluation
     def _warn_outside(self, X, domain=None, what="X", stacklevel=3):
         domain = self.domain_ if domain is None else domain
@@ -714,14 +686,12 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
                                self._dynamics())
 
     def _default_method(self):
-        # A fit on steps learns the averaged-vector-field map at the data step.
-        return "avf" if self.fit_on == "steps" else "rk4"
+        return simulation.default_method(self.fit_on)
 
     def _default_step(self, method):
         """The step ``simulate`` takes when ``max_step`` is None."""
-        if self.fit_on == "steps" and method == "avf" and np.isfinite(self.dt_):
-            return self.dt_
-        return STEP_FRACTION[method] * self.time_scale_
+        return simulation.default_step(method, fit_on=self.fit_on, dt=self.dt_,
+                                       time_scale=self.time_scale_)
 
     def simulate(self, x0, t, *, method=None, max_step=None, on_failure="raise"):
         """Integrate the learned system from one or several initial states.
@@ -770,36 +740,15 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
             converge, with ``on_failure="raise"``.
         """
         check_is_fitted(self)
-        x0 = np.asarray(x0, dtype=float)
-        single = x0.ndim == 1
-        x0 = np.atleast_2d(x0)
-        if x0.ndim != 2 or x0.shape[1] != self.n_features_in_:
-            raise ValueError(
-                f"x0 must have shape ({self.n_features_in_},) or (n_initial, "
-                f"{self.n_features_in_}); got {np.shape(x0)}."
-            )
-        if not np.isfinite(x0).all():
-            raise ValueError("x0 contains NaN or infinity.")
-        t = check_time(t)
-        if max_step is not None and not (
-            isinstance(max_step, Real) and not isinstance(max_step, bool) and max_step > 0
-        ):
-            raise ValueError(
-                f"max_step must be a positive number, numpy.inf, or None; got {max_step!r}."
-            )
+        x0, single = simulation.check_initial_states(x0, self.n_features_in_)
+        t = simulation.check_time(t)
+        simulation.check_max_step(max_step)
         integrator = self._integrator(method)
         if max_step is None:
             max_step = self._default_step(integrator.name)
-        if on_failure not in ("raise", "nan"):
-            raise ValueError(f"on_failure must be 'raise' or 'nan'; got {on_failure!r}.")
-        # Many small products: one BLAS thread.
-        with limit_blas(0):
-            Y, failed_at = integrate(integrator, x0, t, max_step)
-        if on_failure == "raise":
-            raise_on_failure(failed_at, t, what=f"the learned system ({type(self).__name__})")
-        Y = np.swapaxes(Y, 0, 1)
-        reached = np.arange(t.shape[0])[None, :] < failed_at[:, None]
-        Y[~reached] = np.nan
+        simulation.check_on_failure(on_failure)
+        Y, reached = simulation.run(integrator, x0, t, max_step, on_failure,
+                                    what=f"the learned system ({type(self).__name__})")
         self._warn_outside(Y[reached], what="the simulated states", stacklevel=3)
         return Y[0] if single else Y
 
