@@ -1,10 +1,10 @@
 """What the two regressors share: input handling, model space, simulation and scoring.
 
-Simulation's checks, defaults and run are in :mod:`._integrate.simulation`.
+The model space is built by :mod:`._space.builder`; simulation's checks,
+defaults and run are in :mod:`._integrate.simulation`.
 """
 
 import copy
-import operator
 import warnings
 from numbers import Integral, Real
 
@@ -27,8 +27,9 @@ from ._least_squares import (
 )
 from ._scoring import rollout_score
 from ._solvers import NormalEquations, choose_solver, warn_if_ill_conditioned
-from ._streaming import PartialFitState
-from ._space import ModelSpace, index_set
+from ._streaming import PartialFitState, ShapeOnly
+from ._space import ModelSpace
+from ._space.builder import build_space, space_index_set
 from ._space.readable import ReadableBasis
 from ._space.space import all_finite, count_outside
 from ._trajectories import unpack_derivatives
@@ -39,10 +40,6 @@ BLOCK_ENTRIES = 10_000_000
 # Relative slack for "outside the domain", so that training points on the
 # bounding box do not warn after round-off.
 DOMAIN_SLACK = 1e-9
-# Thinnest interval of a domain: the map onto the basis window scales
-# derivatives by 2 / width, Hessians and Gram products by its square, and
-# 1e200 leaves room for both below overflow (1.8e308).
-THINNEST_DOMAIN = 1e-100
 
 
 def is_trajectory_container(X):
@@ -57,16 +54,6 @@ def is_trajectory_container(X):
 def _is_dask(X):
     """Whether ``X`` is a dask collection (without importing dask)."""
     return type(X).__module__.split(".")[0] == "dask" and hasattr(X, "__dask_graph__")
-
-
-class _ShapeOnly:
-    """A chunk's data seen by ``_check_size`` only for its shapes (never underdetermined)."""
-
-    def __init__(self, data):
-        self.states, self.derivatives = data.states, data.derivatives
-
-    def n_rows(self, fit_on):
-        return np.inf
 
 
 class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
@@ -210,10 +197,10 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
         if state is None:
             # Each chunk may be smaller than the number of unknowns: only the
             # accumulated equations must determine them.
-            self._set_up_space(data, size_data=_ShapeOnly(data))
+            self._set_up_space(data, size_data=ShapeOnly(data))
             state = PartialFitState(self, self._normal_accumulator(), data.states.shape[1])
         else:
-            self._check_size(_ShapeOnly(data))
+            self._check_size(ShapeOnly(data))
             # Frames: _warn_outside, partial_fit, its available_if wrapper.
             self._warn_outside(data.states, what="the training states", stacklevel=4)
         state.add(self, data, self._training_step(data))
@@ -238,16 +225,26 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
         self.dt_ = state.training_step()
 
     def _set_up_space(self, data, size_data=None):
-        """Check the data against the parameters and build the model space."""
-        n_states = data.states.shape[1]
-        self._check_dimensions(n_states)
-        self.periodic_ = self._fit_periodic(n_states)
-        self.powers_ = self._index_set(n_states)
-        self._check_size(data if size_data is None else size_data)
-        self.domain_ = self._fit_domain(
-            data.states if data.sample_weight is None else data.states[data.sample_weight > 0]
+        """Check the data against the parameters and build the model space (:mod:`._space.builder`)."""
+        self._check_dimensions(data.states.shape[1])
+        self._space = space = build_space(
+            data.states, domain=self.domain, sample_weight=data.sample_weight,
+            check_size=lambda powers: self._check_size(data if size_data is None else size_data),
+            **self._space_parameters(),
         )
-        self._space = ModelSpace(self.domain_, self.powers_, self.periodic_)
+        self.periodic_, self.powers_, self.domain_ = space.periodic, space.powers, space.domain
+        if self.domain is not None:
+            w = data.sample_weight
+            self._warn_outside(data.states if w is None else data.states[w > 0], self.domain_,
+                               "the training states", stacklevel=5)
+
+    def _space_parameters(self):
+        """The parameters of :func:`~sk_hamiltonian._space.builder.build_space` but the domain."""
+        return dict(
+            degree=self.degree, periodic=self.periodic, momentum_degree=self.momentum_degree,
+            separable=self.separable, max_interaction=self.max_interaction,
+            couplings=self.couplings, include_constant=self._include_constant,
+        )
 
     def _finish_fit(self, data, scale=None, magnitude=None, time_scale_states=None):
         """Fitted attributes beyond the coefficients, from the training data."""
@@ -308,113 +305,9 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
             trajectory_weight=trajectory_weight,
         )
 
-    def _fit_periodic(self, n_states):
-        if self.periodic is None:
-            return np.zeros(n_states, dtype=bool)
-        periodic = np.asarray(self.periodic)
-        if (
-            periodic.shape != (n_states,)
-            or not (periodic.dtype == bool or np.isin(periodic, (0, 1)).all())
-        ):
-            raise ValueError(
-                f"periodic must be None or an array of {n_states} booleans, True for "
-                f"each state variable that is an angle; got {self.periodic!r}."
-            )
-        return periodic.astype(bool)
-
-    def _fit_domain(self, X):
-        n_states = X.shape[1]
-        if self.domain is None:
-            if X.shape[0] < 2:
-                raise ValueError(
-                    f"Found n_samples={X.shape[0]} (with positive weight): at least 2 are "
-                    f"needed, since the domain is their bounding box."
-                )
-            # An angle's default period is [-pi, pi); other variables take the
-            # bounding box of the training states (those with positive weight).
-            domain = np.column_stack([X.min(axis=0), X.max(axis=0)])
-            domain[self.periodic_] = [-np.pi, np.pi]
-            width = domain[:, 1] - domain[:, 0]
-            scale = np.maximum(np.abs(domain).max(axis=1), np.finfo(float).tiny)
-            flat = np.flatnonzero(width <= 1e-9 * scale)  # within round-off of the values
-            if flat.size:
-                raise ValueError(
-                    f"State variable(s) {flat.tolist()} are constant in the training "
-                    f"data (up to round-off), so the bounding box is empty; pass an "
-                    f"explicit `domain` of shape ({n_states}, 2), or drop the "
-                    f"variable(s)."
-                )
-            thin = np.flatnonzero(width < THINNEST_DOMAIN)
-            if thin.size:
-                raise ValueError(
-                    f"State variable(s) {thin.tolist()} span less than {THINNEST_DOMAIN:g} "
-                    f"in the training data ({width[thin].tolist()}): on so thin a "
-                    f"bounding box (the default domain) the basis' derivatives overflow. "
-                    f"Rescale the variable(s) to units in which they span about 1."
-                )
-            return domain
-        domain = check_array(self.domain, input_name="domain", ensure_2d=False)
-        if domain.shape != (n_states, 2) or np.any(domain[:, 1] <= domain[:, 0]):
-            raise ValueError(
-                f"domain must have shape ({n_states}, 2) with one (low, high) row "
-                f"per state variable and low < high; got {np.asarray(self.domain).tolist()}."
-            )
-        with np.errstate(over="ignore", invalid="ignore"):
-            width = domain[:, 1] - domain[:, 0]
-        thin = np.flatnonzero(~(width >= THINNEST_DOMAIN) | ~np.isfinite(width))
-        if thin.size:
-            raise ValueError(
-                f"domain rows {thin.tolist()} are {width[thin].tolist()} wide: the "
-                f"basis' derivatives overflow on an interval narrower than "
-                f"{THINNEST_DOMAIN:g} (or one whose width is not finite). Rescale "
-                f"the variable(s) to units in which they span about 1."
-            )
-        # Frames: _warn_outside, _fit_domain, fit, its _fit_context wrapper.
-        self._warn_outside(X, domain, "the training states", stacklevel=5)
-        return domain
-
-    def _index_set(self, n_states):
-        if (self.momentum_degree is not None or self.separable) and n_states % 2:
-            raise ValueError(
-                f"momentum_degree and separable need states (p_1..p_d, q_1..q_d) with an "
-                f"even number of variables; X has {n_states}."
-            )
-        return index_set(
-            n_states, self.degree, periodic=self._fit_periodic(n_states),
-            momentum_degree=self.momentum_degree, separable=self.separable,
-            max_interaction=self.max_interaction, couplings=self._couplings(n_states),
-            include_constant=self._include_constant,
-        )
-
-    def _couplings(self, n_states):
-        """``couplings`` as tuples of variable indices, checked against ``n_states``."""
-        if self.couplings is None:
-            return None
-        groups = []
-        for group in self.couplings:
-            try:
-                members = [operator.index(i) for i in group]
-            except TypeError:
-                members = None
-            if (
-                members is None or isinstance(group, str)
-                or any(isinstance(i, (bool, np.bool_)) for i in group)
-                or len(set(members)) < 2 or len(set(members)) != len(members)
-                or not all(0 <= i < n_states for i in members)
-            ):
-                raise ValueError(
-                    f"couplings must be a list of groups of state-variable indices, each "
-                    f"naming at least two distinct variables in [0, {n_states}) (momenta "
-                    f"first: p_1..p_d are 0..d-1, q_1..q_d are d..2d-1); got the group "
-                    f"{group!r}. For nearest neighbours on a chain of d particles, pass "
-                    f"[(d + i, d + i + 1) for i in range(d - 1)]."
-                )
-            groups.append(tuple(members))
-        return groups
-
     def _n_terms(self, n_states):
         """Number of basis functions for data with ``n_states`` variables."""
-        return self._index_set(n_states).shape[0]
+        return space_index_set(n_states, **self._space_parameters()).shape[0]
 
     def _set_up_fit(self, data):
         """Model space and solver for ``data``; returns the number of equations."""

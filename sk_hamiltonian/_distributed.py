@@ -17,9 +17,8 @@ import warnings
 
 import numpy as np
 
-from ._space import ModelSpace
 from ._space.space import outside_domain
-from ._streaming import PartialFitState
+from ._streaming import PartialFitState, ShapeOnly
 from .exceptions import DomainWarning
 
 
@@ -32,6 +31,13 @@ class _Counted:
 
     def n_rows(self, fit_on):
         return self._n_rows
+
+
+class _Box:
+    """Training data as the model space's builder sees them: two states spanning the box."""
+
+    def __init__(self, states):
+        self.states, self.sample_weight = states, None
 
 
 def _chunk_state(estimator, X, y, weight):
@@ -132,9 +138,6 @@ def fit_distributed(estimator, X, y=None, sample_weight=None):
     first_X, first_y, first_w = dask.compute(X_blocks[0], y_blocks[0], weights[0])
     data = estimator._training_data(first_X, first_y, first_w)
     n_states = data.states.shape[1]
-    estimator._check_dimensions(n_states)
-    estimator.periodic_ = estimator._fit_periodic(n_states)
-    estimator.powers_ = estimator._index_set(n_states)
     flat = states.reshape(-1, n_states)
     if estimator.domain is None:
         if sample_weight is not None:
@@ -142,12 +145,16 @@ def fit_distributed(estimator, X, y=None, sample_weight=None):
             if layout:
                 positive = da.repeat(positive, X.shape[1])
             flat = flat[positive.rechunk((flat.chunks[0],))]
-        low, high = dask.compute(flat.min(axis=0), flat.max(axis=0))
-        estimator.domain_ = estimator._fit_domain(np.vstack([low, high]))
+        box = np.vstack(dask.compute(flat.min(axis=0), flat.max(axis=0)))
     else:
-        box = np.asarray(estimator.domain, dtype=float)
-        centre = box.mean(axis=1) if box.ndim == 2 else np.zeros(n_states)
-        estimator.domain_ = estimator._fit_domain(np.vstack([centre, centre]))
+        # The explicit box is checked on its centre (inside it); the states
+        # outside are counted over all chunks below.
+        explicit = np.asarray(estimator.domain, dtype=float)
+        centre = explicit.mean(axis=1) if explicit.ndim == 2 else np.zeros(n_states)
+        box = np.vstack([centre, centre])
+    # The size check needs the rows of every chunk: after the box.
+    estimator._set_up_space(_Box(box), size_data=ShapeOnly(data))
+    if estimator.domain is not None:
         outside = flat.map_blocks(
             lambda S: outside_domain(S, estimator.domain_, estimator.periodic_)[:, None],
             chunks=(flat.chunks[0], (1,)), dtype=bool,
@@ -159,7 +166,6 @@ def fit_distributed(estimator, X, y=None, sample_weight=None):
                 f"{estimator.domain_.tolist()}, where the model is not trusted.",
                 DomainWarning, stacklevel=4,
             )
-    estimator._space = ModelSpace(estimator.domain_, estimator.powers_, estimator.periodic_)
     template = dask.delayed(estimator, pure=True)
     n_rows = sum(dask.compute(*[
         dask.delayed(_chunk_rows)(template, Xb, yb, wb)

@@ -146,3 +146,17 @@ class PartialFitState:
         order = np.argsort(medians)
         cumulative = np.cumsum(counts[order])
         return float(medians[order][np.searchsorted(cumulative, cumulative[-1] / 2)])
+
+
+class ShapeOnly:
+    """A chunk's data as ``_check_size`` sees it: shapes only, never underdetermined.
+
+    Each chunk of ``partial_fit`` may be smaller than the number of
+    unknowns: only the accumulated equations must determine them.
+    """
+
+    def __init__(self, data):
+        self.states, self.derivatives = data.states, data.derivatives
+
+    def n_rows(self, fit_on):
+        return np.inf
