@@ -1,10 +1,13 @@
-"""What the two regressors share: input handling, model space, simulation and scoring.
+"""What the two regressors share: parameters, input validation, the public methods, the tags.
 
-The model space is built by :mod:`._space.builder`; simulation's checks,
-defaults and run are in :mod:`._integrate.simulation`.
+Each job behind the public methods has a home of its own: the four steps of
+a fit (:mod:`._fit_steps`, each callable without ``fit``), the model space
+(:mod:`._space.builder`), the least-squares problem and its support
+(:mod:`._least_squares`), simulation (:mod:`._integrate.simulation`),
+scoring (:mod:`._scoring`), ``partial_fit`` (:mod:`._streaming`) and the
+dask fit (:mod:`._distributed`).
 """
 
-import copy
 import warnings
 from numbers import Integral, Real
 
@@ -13,26 +16,20 @@ from sklearn.base import BaseEstimator, RegressorMixin, _fit_context
 from sklearn.utils import check_array
 from sklearn.utils._available_if import available_if
 from sklearn.utils._param_validation import Interval, InvalidParameterError, StrOptions
-from sklearn.utils.validation import _check_sample_weight, check_is_fitted, validate_data
+from sklearn.utils.validation import check_is_fitted, validate_data
 
-from ._design import TrainingData
+from . import _fit_steps as steps
+from ._distributed import fit_distributed, is_dask
 from ._integrate import make_integrator, simulation
-from ._threads import gram_flops, limit_blas
-from ._least_squares import (
-    CGNotConverged,
-    LeastSquaresProblem,
-    accumulated_solver,
-    column_solver,
-    fit_support,
-)
+from ._least_squares import solve
 from ._scoring import rollout_score
-from ._solvers import NormalEquations, choose_solver, warn_if_ill_conditioned
-from ._streaming import PartialFitState, ShapeOnly
 from ._space import ModelSpace
-from ._space.builder import build_space, space_index_set
-from ._space.readable import ReadableBasis
+from ._space.builder import space_index_set
 from ._space.space import all_finite, count_outside
-from ._trajectories import unpack_derivatives
+from ._streaming import partial_fit_chunk
+from ._threads import gram_flops, limit_blas
+from ._trajectories import is_trajectory_container, unpack_derivatives
+from ._training_data import training_data
 from .exceptions import DomainWarning
 
 # Rows of evaluations done at once, to bound memory (entries of float64).
@@ -42,26 +39,14 @@ BLOCK_ENTRIES = 10_000_000
 DOMAIN_SLACK = 1e-9
 
 
-def is_trajectory_container(X):
-    """Whether ``X`` is a 3-D array or a list of 2-D arrays (trajectories)."""
-    if hasattr(X, "ndim") and not hasattr(X, "columns"):
-        return X.ndim == 3
-    if isinstance(X, (list, tuple)) and len(X) > 0:
-        return np.ndim(X[0]) == 2
-    return False
-
-
-def _is_dask(X):
-    """Whether ``X`` is a dask collection (without importing dask)."""
-    return type(X).__module__.split(".")[0] == "dask" and hasattr(X, "__dask_graph__")
-
-
 class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
     """Linear models of ``dx/dt = f(x)`` in a tensor-product space, fitted by least squares.
 
-    Subclasses define what is fitted through ``_fit_coef`` and
-    ``_vector_field``, and which integrators they support through
-    ``_dynamics``.
+    Subclasses say what is fitted through ``_design`` (a
+    :class:`~sk_hamiltonian._least_squares.Design`) and ``_set_coef``, how
+    the learned field is evaluated (``_vector_field``, ``_jacobian``), and
+    which integrators they support through ``_dynamics``. ``fit`` runs the
+    four steps of :mod:`sk_hamiltonian._fit_steps`.
     """
 
     _parameter_constraints = {
@@ -123,19 +108,23 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
             The fitted estimator.
         """
         self._check_integer_params()
-        if _is_dask(X) or _is_dask(y):
-            from ._distributed import fit_distributed
-
+        if is_dask(X) or is_dask(y):
             return fit_distributed(self, X, y, sample_weight)
         self._partial = None
         data = self._training_data(X, y, sample_weight)
-        n_rows = self._set_up_fit(data)
+        space = steps.build_space(self, data)
+        design = self._design(space)
         # Small problems on one BLAS thread: thread start-up and, on a busy
         # machine, oversubscription cost more than they save.
-        with limit_blas(gram_flops(n_rows, self._n_unknowns())):
-            self._fit_coef(data)
-        self._finish_fit(data)
-        return self
+        with limit_blas(gram_flops(design.n_rows(data), design.n_columns)):
+            # The chosen solver under the support rule; with "normal", the
+            # steps (b) and (c) of _fit_steps.
+            solution, solver = solve(
+                design.problem(data), steps.choose(self, design, data),
+                steps.support_rule(self, space), fall_back=self.solver == "auto",
+                progress=self._progress, name=type(self).__name__,
+            )
+        return steps.set_fitted(self, space, solution, data, solver=solver)
 
     def _check_partial_fit(self):
         # partial_fit exists only with a fixed box: the basis (and so the
@@ -182,248 +171,11 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
             of the chunks' median steps, and the energy-trend attributes from
             the last chunk.
         """
-        state = getattr(self, "_partial", None)
-        if state is None:
-            self._validate_params()
-            self._check_integer_params()
-            if self.solver not in ("auto", "normal"):
-                raise ValueError(
-                    f"partial_fit accumulates the normal equations, so it needs "
-                    f"solver='auto' or 'normal'; got solver={self.solver!r}."
-                )
-        else:
-            state.check_parameters(self)
-        data = self._training_data(X, y, sample_weight, reset=state is None)
-        if state is None:
-            # Each chunk may be smaller than the number of unknowns: only the
-            # accumulated equations must determine them.
-            self._set_up_space(data, size_data=ShapeOnly(data))
-            state = PartialFitState(self, self._normal_accumulator(), data.states.shape[1])
-        else:
-            self._check_size(ShapeOnly(data))
-            # Frames: _warn_outside, partial_fit, its available_if wrapper.
-            self._warn_outside(data.states, what="the training states", stacklevel=4)
-        state.add(self, data, self._training_step(data))
-        self._partial = state
-        self._solve_accumulated(state, data)
-        return self
-
-    def _solve_accumulated(self, state, data, residual=None):
-        """Solve accumulated normal equations and set every fitted attribute.
-
-        ``state`` is a :class:`~sk_hamiltonian._streaming.PartialFitState`;
-        ``data`` (one chunk) serves the energy-trend check; ``residual(keep)``
-        optionally returns the refinement callback against the design.
-        """
-        solve, norms = accumulated_solver(*state.normal_equations(), residual)
-        self._set_solution(self._fit_support(solve, norms))
-        self.solver_ = "normal"
-        self._finish_fit(
-            data, scale=state.scale(), magnitude=state.magnitude(),
-            time_scale_states=state.reservoir,
-        )
-        self.dt_ = state.training_step()
-
-    def _set_up_space(self, data, size_data=None):
-        """Check the data against the parameters and build the model space (:mod:`._space.builder`)."""
-        self._check_dimensions(data.states.shape[1])
-        self._space = space = build_space(
-            data.states, domain=self.domain, sample_weight=data.sample_weight,
-            check_size=lambda powers: self._check_size(data if size_data is None else size_data),
-            **self._space_parameters(),
-        )
-        self.periodic_, self.powers_, self.domain_ = space.periodic, space.powers, space.domain
-        if self.domain is not None:
-            w = data.sample_weight
-            self._warn_outside(data.states if w is None else data.states[w > 0], self.domain_,
-                               "the training states", stacklevel=5)
-
-    def _space_parameters(self):
-        """The parameters of :func:`~sk_hamiltonian._space.builder.build_space` but the domain."""
-        return dict(
-            degree=self.degree, periodic=self.periodic, momentum_degree=self.momentum_degree,
-            separable=self.separable, max_interaction=self.max_interaction,
-            couplings=self.couplings, include_constant=self._include_constant,
-        )
-
-    def _finish_fit(self, data, scale=None, magnitude=None, time_scale_states=None):
-        """Fitted attributes beyond the coefficients, from the training data."""
-        warn_if_ill_conditioned(self.cond_, self.rank_, self._n_solved, type(self).__name__)
-        self.dt_ = self._training_step(data)
-        self.state_scale_ = self._state_scale(data.states) if scale is None else scale
-        # Typical size of each variable, for ranking terms (inspection).
-        self._state_magnitude = (
-            np.sqrt(np.mean(data.states**2, axis=0)) if magnitude is None else magnitude
-        )
-        self.time_scale_ = simulation.time_scale(
-            self._jacobian, data.states if time_scale_states is None else time_scale_states
-        )
-        self._after_fit(data)
-
-    def _check_integer_params(self):
-        # scikit-learn's Interval(Integral) lets booleans through; True is no degree.
-        for name in ("degree", "momentum_degree", "max_interaction"):
-            value = getattr(self, name)
-            if isinstance(value, (bool, np.bool_)):
-                raise InvalidParameterError(
-                    f"The {name!r} parameter of {type(self).__name__} must be an int, not "
-                    f"a boolean; got {value!r}."
-                )
-
-    def _training_data(self, X, y, sample_weight, reset=True):
-        """Validate the input and gather what the fit needs."""
-        if not is_trajectory_container(X):
-            X, y = validate_data(self, X, y, multi_output=True, y_numeric=True, reset=reset)
-            weight = None if sample_weight is None else _check_sample_weight(sample_weight, X)
-            return TrainingData(X, y, weight)
-        if y is not None:
-            raise ValueError(
-                "y must be None when X is trajectory data: the time derivatives "
-                "are part of the DerivativeTransformer output."
-            )
-        layout = unpack_derivatives(X)
-        states, derivatives, times = list(layout.states), list(layout.derivatives), list(layout.times)
-        lengths = [S.shape[0] for S in states]
-        X2, y2 = validate_data(
-            self, np.concatenate(states), np.concatenate(derivatives), multi_output=True,
-            y_numeric=True, reset=reset,
-        )
-        trajectory_weight = weight = None
-        if sample_weight is not None:
-            trajectory_weight = np.asarray(sample_weight, dtype=float)
-            if trajectory_weight.shape != (len(states),):
-                raise ValueError(
-                    f"sample_weight must have one weight per trajectory, shape "
-                    f"({len(states)},), when X is the derivative layout; got shape "
-                    f"{trajectory_weight.shape}."
-                )
-            trajectory_weight = _check_sample_weight(trajectory_weight, states)
-            weight = np.repeat(trajectory_weight, lengths)
-        pieces = np.split(X2, np.cumsum(lengths)[:-1])
-        return TrainingData(
-            X2, y2, weight, trajectories=list(zip(times, pieces)),
-            trajectory_weight=trajectory_weight,
-        )
+        return partial_fit_chunk(self, X, y, sample_weight)
 
     def _n_terms(self, n_states):
         """Number of basis functions for data with ``n_states`` variables."""
-        return space_index_set(n_states, **self._space_parameters()).shape[0]
-
-    def _set_up_fit(self, data):
-        """Model space and solver for ``data``; returns the number of equations."""
-        self._set_up_space(data)
-        n_rows = data.n_rows(self.fit_on) * self._rows_per_sample(data.states.shape[1])
-        self.solver_ = choose_solver(
-            self.solver, n_rows, self.powers_.shape[0],
-            factored=lambda: self._factored_maps() is not None,
-        )
-        return n_rows
-
-    def _least_squares_problem(self, data):
-        """The design of a fit on ``data``, in the forms the solvers take."""
-        return LeastSquaresProblem(
-            lambda grouped=False: self._design_blocks(data, grouped=grouped),
-            lambda: self._design_operator(data),
-            lambda progress=None: self._accumulate(data, progress).result(),
-            self._n_unknowns(), self._n_nonnegative(), groups=self._column_groups(),
-        )
-
-    def _accumulate(self, data, progress=None, accumulator=None):
-        """``accumulator`` (default: a new :meth:`_normal_accumulator`) with ``data``'s blocks added."""
-        if accumulator is None:
-            accumulator = self._normal_accumulator()
-        return accumulator.add_blocks(self._normal_blocks(data, accumulator), progress)
-
-    def _fit_coef(self, data):
-        """Solve the least-squares problem of ``data`` with ``solver_``; set the coefficients."""
-        problem = self._least_squares_problem(data)
-        name = type(self).__name__
-        single_solve = self.threshold == 0 and not self._n_nonnegative()
-        try:
-            solve, norms = column_solver(
-                problem, self.solver_, single_solve=single_solve,
-                many_supports=self.threshold > 0, fall_back=self.solver == "auto",
-                progress=self._progress("iteration {0}: relative normal residual {1:.2e}"),
-                block_progress=self._progress("block {0}: {1} equations accumulated"),
-                name=name,
-            )
-            solution = self._fit_support(solve, norms)
-        except CGNotConverged:
-            # The closed-form preconditioner assumes samples spread over the
-            # box, a sketch a design well enough conditioned for its Gram
-            # matrix; where that fails, fall back to the normal equations.
-            self.solver_ = "normal"
-            if self.verbose:
-                print(f"[{name}] conjugate gradients did not converge; normal equations")
-            solution = self._fit_support(*column_solver(
-                problem, "normal",
-                block_progress=self._progress("block {0}: {1} equations accumulated"), name=name,
-            ))
-        self._set_solution(solution)
-
-    def _fit_threshold_path(self, X, thresholds):
-        """Fitted copies of this estimator, one per threshold, from one assembly.
-
-        Each equals ``clone(self).set_params(threshold=t).fit(X)`` up to
-        round-off, but the design (and with ``solver="normal"`` its Gram
-        matrix) is built once: a new support needs only a smaller solve.
-        In-memory data only; the caller falls back to separate fits for dask
-        arrays and when conjugate gradients do not converge.
-
-        Parameters
-        ----------
-        X : derivative layout or array-like of shape (n_samples, n_states)
-            What :meth:`fit` takes (2-D states need ``y``, which this path
-            does not take: pass the derivative layout).
-        thresholds : sequence of float
-            Non-negative thresholds.
-
-        Returns
-        -------
-        models : list of estimators
-            Fitted, in the order of ``thresholds``.
-        """
-        self._validate_params()
-        self._check_integer_params()
-        self._partial = None
-        data = self._training_data(X, None, None)
-        n_rows = self._set_up_fit(data)
-        problem = self._least_squares_problem(data)
-        models = []
-        with limit_blas(gram_flops(n_rows, self._n_unknowns())):
-            solve, norms = column_solver(
-                problem, self.solver_, many_supports=True, fall_back=self.solver == "auto",
-                name=type(self).__name__,
-            )
-            for threshold in thresholds:
-                model = copy.copy(self)
-                model.threshold = float(threshold)
-                model._set_solution(model._fit_support(solve, norms))
-                model._finish_fit(data)
-                models.append(model)
-        return models
-
-    def _fit_support(self, solve, column_norms):
-        """The support rule of ``threshold`` over a column solver (see :mod:`._least_squares`)."""
-        return fit_support(
-            solve, column_norms, self._n_unknowns(), n_basis=self._space.n_terms,
-            threshold=self.threshold, n_nonnegative=self._n_nonnegative(),
-            readable=self._readable_basis() if self.threshold else None,
-            name=type(self).__name__,
-        )
-
-    def _readable_basis(self):
-        return ReadableBasis(self.powers_, self.domain_, self.periodic_)
-
-    def _set_solution(self, solution):
-        """Set the fitted coefficients, support and solve diagnostics from a Solution."""
-        self.support_ = solution.support
-        self.n_terms_ = int(solution.n_kept)
-        self.n_iter_ = solution.n_iter
-        self.cond_, self.rank_ = solution.cond, solution.rank
-        self._n_solved = solution.n_solved
-        self._set_coef(solution.coef)
-        self._rebuild_fitted()
+        return space_index_set(n_states, **steps.space_parameters(self)).shape[0]
 
     def _rebuild_fitted(self):
         """Private state derived from the public fitted attributes.
@@ -458,22 +210,26 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
 
         return report
 
-    def _training_step(self, data):
-        """Median sampling step of the training trajectories (NaN without them)."""
-        if data.trajectories is None:
-            return float("nan")
-        steps = np.concatenate([np.diff(t) for t, _ in data.trajectories])
-        return float(np.median(steps)) if steps.size else float("nan")
+    # ----------------------------------------------------------- validation
+    def _check_integer_params(self):
+        # scikit-learn's Interval(Integral) lets booleans through; True is no degree.
+        for name in ("degree", "momentum_degree", "max_interaction"):
+            value = getattr(self, name)
+            if isinstance(value, (bool, np.bool_)):
+                raise InvalidParameterError(
+                    f"The {name!r} parameter of {type(self).__name__} must be an int, not "
+                    f"a boolean; got {value!r}."
+                )
 
-    def _state_scale(self, states):
-        scale = np.std(states, axis=0)
-        # A constant variable (possible with an explicit domain) keeps unit scale.
-        return np.where(scale > 0, scale, 1.0)
+    def _training_data(self, X, y, sample_weight, reset=True):
+        """Validate the input and gather what the fit needs (a :class:`~sk_hamiltonian._training_data.TrainingData`)."""
+        return training_data(self, X, y, sample_weight, reset)
 
-    # ------------------------------------------------------------ evaluation
-    def _warn_outside(self, X, domain=None, what="X", stacklevel=3):
-        domain = self.domain_ if domain is None else domain
-        n_outside = count_outside(X, domain, self.periodic_, slack=DOMAIN_SLACK)
+    def _warn_outside(self, X, space=None, what="X", stacklevel=3):
+        """A :class:`DomainWarning` for the rows of ``X`` outside ``space``'s box (default: the fitted one)."""
+        domain, periodic = (self.domain_, self.periodic_) if space is None else (
+            space.domain, space.periodic)
+        n_outside = count_outside(X, domain, periodic, slack=DOMAIN_SLACK)
         self._warn_n_outside(n_outside, X.shape[0], domain, what, stacklevel + 1)
 
     def _warn_n_outside(self, n_outside, n_samples, domain=None, what="X", stacklevel=3):
@@ -501,12 +257,20 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
         flat = check_array(X.reshape(-1, X.shape[-1]), ensure_min_samples=1)
         return flat, X.shape[:-1]
 
-    def _in_blocks(self, X, fun, width):
-        """Apply ``fun`` to row blocks of ``X`` small enough to bound memory."""
-        size = max(1, BLOCK_ENTRIES // max(1, width))
-        if X.shape[0] <= size:
-            return fun(X)
-        return np.concatenate([fun(X[i : i + size]) for i in range(0, X.shape[0], size)])
+    def _validate_states(self, X):
+        """``validate_data(self, X, reset=False)``, short-cut for a plain finite float64 array.
+
+        For such an array (no feature names at fit) the validation returns
+        it unchanged; its generic path costs about ten times the prediction
+        of one state.
+        """
+        if (
+            type(X) is np.ndarray and X.dtype == np.float64 and X.ndim == 2
+            and X.shape[0] > 0 and X.shape[1] == self.n_features_in_
+            and not hasattr(self, "feature_names_in_") and all_finite(X)
+        ):
+            return X
+        return validate_data(self, X, reset=False)
 
     def _check_fitted(self):
         """``check_is_fitted(self)``, short-cut for a model that has ``coef_``.
@@ -517,6 +281,14 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
         """
         if "coef_" not in self.__dict__:
             check_is_fitted(self)
+
+    # ----------------------------------------------------------- evaluation
+    def _in_blocks(self, X, fun, width):
+        """Apply ``fun`` to row blocks of ``X`` small enough to bound memory."""
+        size = max(1, BLOCK_ENTRIES // max(1, width))
+        if X.shape[0] <= size:
+            return fun(X)
+        return np.concatenate([fun(X[i : i + size]) for i in range(0, X.shape[0], size)])
 
     def predict(self, X):
         """Time derivatives of the learned system at the given states.
@@ -557,21 +329,6 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
         general path (and its errors).
         """
         return None
-
-    def _validate_states(self, X):
-        """``validate_data(self, X, reset=False)``, short-cut for a plain finite float64 array.
-
-        For such an array (no feature names at fit) the validation returns
-        it unchanged; its generic path costs about ten times the prediction
-        of one state.
-        """
-        if (
-            type(X) is np.ndarray and X.dtype == np.float64 and X.ndim == 2
-            and X.shape[0] > 0 and X.shape[1] == self.n_features_in_
-            and not hasattr(self, "feature_names_in_") and all_finite(X)
-        ):
-            return X
-        return validate_data(self, X, reset=False)
 
     # ------------------------------------------------------------ simulation
     def _integrator(self, method=None):
@@ -703,44 +460,9 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
     def _check_size(self, data):
         """Hook: reject problems the model cannot fit."""
 
-    def _rows_per_sample(self, n_states):
+    def _design(self, space):
+        """The least-squares design of this model on ``space`` (a :class:`~sk_hamiltonian._least_squares.Design`)."""
         raise NotImplementedError
-
-    def _design_blocks(self, data, grouped=False):
-        """Row blocks of the design (grouped: ``(A, b, group)`` for the accumulator)."""
-        raise NotImplementedError
-
-    def _design_operator(self, data):
-        """The design as a :class:`~sk_hamiltonian._design_operator.DesignOperator`."""
-        raise NotImplementedError
-
-    def _column_groups(self):
-        """Columns each group of rows of the grouped design touches; None: one group of all."""
-        raise NotImplementedError
-
-    def _normal_accumulator(self):
-        """An empty accumulator of the design's normal equations (see :meth:`_normal_blocks`).
-
-        Here a :class:`~sk_hamiltonian._solvers.NormalEquations` with the
-        design's groups.
-        """
-        return NormalEquations(self._n_unknowns(), self._column_groups())
-
-    def _factored_maps(self):
-        """The maps of a design whose normal equations are factored (:mod:`._factored`), or None."""
-        return None
-
-    def _normal_blocks(self, data, accumulator):
-        """The blocks of ``data`` that ``accumulator`` (from :meth:`_normal_accumulator`) takes."""
-        return self._design_blocks(data, grouped=True)
-
-    def _n_unknowns(self):
-        """Columns of the design."""
-        raise NotImplementedError
-
-    def _n_nonnegative(self):
-        """How many of the last unknowns are constrained to be >= 0."""
-        return 0
 
     def _set_coef(self, coef):
         """Set the fitted coefficients from the solution vector."""

@@ -17,9 +17,15 @@ import warnings
 
 import numpy as np
 
+from . import _fit_steps as steps
 from ._space.space import outside_domain
 from ._streaming import PartialFitState, ShapeOnly
 from .exceptions import DomainWarning
+
+
+def is_dask(X):
+    """Whether ``X`` is a dask collection (without importing dask)."""
+    return type(X).__module__.split(".")[0] == "dask" and hasattr(X, "__dask_graph__")
 
 
 class _Counted:
@@ -40,11 +46,11 @@ class _Box:
         self.states, self.sample_weight = states, None
 
 
-def _chunk_state(estimator, X, y, weight):
+def _chunk_state(estimator, design, X, y, weight):
     """On a worker: the normal equations and statistics of one chunk."""
     data = estimator._training_data(X, y, weight, reset=False)
-    state = PartialFitState(estimator, estimator._normal_accumulator(), data.states.shape[1])
-    state.add(estimator, data, estimator._training_step(data))
+    state = PartialFitState(estimator, design.accumulator(), data.states.shape[1])
+    state.add(design, data, data.median_step())
     return state
 
 
@@ -57,10 +63,10 @@ def _chunk_rows(estimator, X, y, weight):
     return estimator._training_data(X, y, weight, reset=False).n_rows(estimator.fit_on)
 
 
-def _chunk_residual(estimator, X, y, weight, coef, keep):
+def _chunk_residual(estimator, design, X, y, weight, coef, keep):
     """On a worker: ``A_k^T (b_k - A_k coef)`` of one chunk, restricted to ``keep``."""
     data = estimator._training_data(X, y, weight, reset=False)
-    operator = estimator._design_operator(data)
+    operator = design.operator(data)
     full = np.zeros((keep.size,) + coef.shape[1:])
     full[keep] = coef
     r = operator.targets - operator.matvec(full if full.ndim == 2 else full[:, None])
@@ -153,17 +159,17 @@ def fit_distributed(estimator, X, y=None, sample_weight=None):
         centre = explicit.mean(axis=1) if explicit.ndim == 2 else np.zeros(n_states)
         box = np.vstack([centre, centre])
     # The size check needs the rows of every chunk: after the box.
-    estimator._set_up_space(_Box(box), size_data=ShapeOnly(data))
+    space = steps.build_space(estimator, _Box(box), size_data=ShapeOnly(data))
     if estimator.domain is not None:
         outside = flat.map_blocks(
-            lambda S: outside_domain(S, estimator.domain_, estimator.periodic_)[:, None],
+            lambda S: outside_domain(S, space.domain, space.periodic)[:, None],
             chunks=(flat.chunks[0], (1,)), dtype=bool,
         )
         fraction = float(outside.mean().compute())
         if fraction > 0:
             warnings.warn(
                 f"{fraction:.1%} of the training states lie outside the domain "
-                f"{estimator.domain_.tolist()}, where the model is not trusted.",
+                f"{space.domain.tolist()}, where the model is not trusted.",
                 DomainWarning, stacklevel=4,
             )
     template = dask.delayed(estimator, pure=True)
@@ -172,9 +178,9 @@ def fit_distributed(estimator, X, y=None, sample_weight=None):
         for Xb, yb, wb in zip(X_blocks, y_blocks, weights)
     ]))
     estimator._check_size(_Counted(data, n_rows))
-
+    design = dask.delayed(estimator._design(space), pure=True)
     parts = [
-        dask.delayed(_chunk_state)(template, Xb, yb, wb)
+        dask.delayed(_chunk_state)(template, design, Xb, yb, wb)
         for Xb, yb, wb in zip(X_blocks, y_blocks, weights)
     ]
     state = _tree_sum(parts, _merge).compute()
@@ -182,12 +188,12 @@ def fit_distributed(estimator, X, y=None, sample_weight=None):
     def residual(keep):
         def refine(coef):
             terms = [
-                dask.delayed(_chunk_residual)(template, Xb, yb, wb, coef, keep)
+                dask.delayed(_chunk_residual)(template, design, Xb, yb, wb, coef, keep)
                 for Xb, yb, wb in zip(X_blocks, y_blocks, weights)
             ]
             return _tree_sum(terms, np.add).compute()
 
         return refine
 
-    estimator._solve_accumulated(state, data, residual)
-    return estimator
+    solution = steps.solve_normal_equations(estimator, space, state.normal_equations(), residual)
+    return steps.set_fitted(estimator, space, solution, data, solver="normal", statistics=state)

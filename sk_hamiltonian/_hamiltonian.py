@@ -7,12 +7,11 @@ import numpy as np
 from ._base import DOMAIN_SLACK, BaseTrajectoryRegressor
 from ._config import use_numba
 from ._conservation import decorrelated, energy_trend
-from ._design import column_groups, hamiltonian_blocks, quadrature_nodes, value_blocks
-from ._factored import FactoredNormalEquations
-from ._design_operator import DesignOperator
+from ._design import quadrature_nodes
 from ._integrate import Dynamics
 from ._integrate.compiled import KernelModel
 from ._kernels import LANE_ROWS
+from ._least_squares import HamiltonianDesign
 from ._space import ModelSpace, compiled
 from ._structure import apply_structure
 from ._trajectories import check_n_states
@@ -242,9 +241,6 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
     def _check_dimensions(self, n_states):
         check_n_states(n_states)
 
-    def _rows_per_sample(self, n_states):
-        return n_states
-
     def _n_terms(self, n_states):
         return super()._n_terms(n_states) + (n_states // 2 if self.damping else 0)
 
@@ -268,49 +264,8 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
                 f"(momentum_degree, separable, max_interaction, couplings)."
             )
 
-    def _design_blocks(self, data, grouped=False):
-        space = self._space
-        return hamiltonian_blocks(
-            space, data, self.fit_on, quadrature_nodes(space), damping=self.damping,
-            grouped=grouped,
-        )
-
-    def _column_groups(self):
-        return column_groups(self._space, self.damping)
-
-    def _factored_maps(self):
-        # The rows of every variable are gradients of one value basis: where
-        # its one Gram matrix costs fewer multiply-adds than the groups' (the
-        # dense spaces: n_states times fewer), accumulate that (_factored).
-        maps = self._space.derivative_maps()
-        return maps if maps.pays(self._column_groups()) else None
-
-    def _normal_accumulator(self):
-        maps = self._factored_maps()
-        if maps is None:
-            return super()._normal_accumulator()
-        d = self._space.n_states // 2
-        return FactoredNormalEquations(maps, range(d, 2 * d) if self.damping else ())
-
-    def _normal_blocks(self, data, accumulator):
-        if not isinstance(accumulator, FactoredNormalEquations):
-            return super()._normal_blocks(data, accumulator)
-        return value_blocks(
-            accumulator.maps, data, self.fit_on, quadrature_nodes(self._space),
-            damping=self.damping,
-        )
-
-    def _design_operator(self, data):
-        space = self._space
-        return DesignOperator(
-            space, data, self.fit_on, quadrature_nodes(space), "gradient", damping=self.damping
-        )
-
-    def _n_unknowns(self):
-        return self._space.n_terms + self._n_nonnegative()
-
-    def _n_nonnegative(self):
-        return self._space.n_states // 2 if self.damping else 0
+    def _design(self, space):
+        return HamiltonianDesign(space, self.fit_on, self.damping)
 
     def _set_coef(self, coef):
         space = self._space

@@ -18,6 +18,7 @@ from sk_hamiltonian import (
     IllConditionedWarning,
     VectorFieldRegressor,
 )
+from sk_hamiltonian import _fit_steps as steps
 from sk_hamiltonian._design import column_groups, hamiltonian_blocks
 from sk_hamiltonian._solvers import (
     NormalEquations,
@@ -115,7 +116,7 @@ def test_refinement_against_the_design_improves_an_inaccurate_cholesky(layout):
     assert reference.cond_ > 500
     assert relative(model.coef_, reference.coef_) < 1e-12
     data = model._training_data(layout, None, None)
-    gram, rhs = model._accumulate(data).result()
+    gram, rhs, _ = steps.normal_equations(model, model._space, data)
     unrefined, _, _ = normal.solve_normal(gram, rhs)
     assert relative(unrefined, reference.coef_) > 10 * relative(model.coef_, reference.coef_)
 
@@ -145,8 +146,7 @@ def test_rank_deficient_fit_is_near_the_minimum_norm_solution(solver, tolerance)
 def test_grouped_accumulation_equals_the_dense_normal_equations(layout):
     model = HamiltonianRegressor(degree=4, damping=True)
     data = model._training_data(layout, None, None)
-    model._set_up_space(data)
-    space = model._space
+    space = steps.build_space(model, data)
     dense = normal_equations(hamiltonian_blocks(space, data, "derivatives", 2, True), space.n_terms + 2)
     accumulator = NormalEquations(space.n_terms + 2, column_groups(space, True))
     grouped = accumulator.add_blocks(
