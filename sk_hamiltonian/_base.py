@@ -114,15 +114,16 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
         data = self._training_data(X, y, sample_weight)
         space = steps.build_space(self, data)
         design = self._design(space)
+        solver = steps.choose(self, design, data)
         # Small problems on one BLAS thread: thread start-up and, on a busy
         # machine, oversubscription cost more than they save.
         with limit_blas(gram_flops(design.n_rows(data), design.n_columns)):
-            # The chosen solver under the support rule; with "normal", the
-            # steps (b) and (c) of _fit_steps.
+            # The solver under the support rule; with "normal", the steps (b)
+            # and (c) of _fit_steps.
             solution, solver = solve(
-                design.problem(data), steps.choose(self, design, data),
-                steps.support_rule(self, space), fall_back=self.solver == "auto",
-                progress=self._progress, name=type(self).__name__,
+                design.problem(data), solver, steps.support_rule(self, space),
+                fall_back=self.solver == "auto", progress=self._progress,
+                name=type(self).__name__,
             )
         return steps.set_fitted(self, space, solution, data, solver=solver)
 

@@ -6,7 +6,8 @@ asks the model for what it needs (its vector field; ``grad H`` and its Hessian
 for the energy-conserving method; the separable split for the explicit
 symplectic ones), and :data:`METHODS`, which maps the names accepted by the
 ``method=`` arguments to the classes. :mod:`.driver` runs a whole
-integration, by the steps here or as one compiled loop (:mod:`.compiled`).
+integration, by the steps here or as one compiled loop (:mod:`.compiled`);
+:mod:`.simulation` is what a fitted model's ``simulate`` delegates to.
 """
 
 from ..exceptions import SimulationError
