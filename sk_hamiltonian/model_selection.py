@@ -24,10 +24,10 @@ import numpy as np
 from sklearn.base import clone
 from sklearn.pipeline import Pipeline
 
-from ._base import BaseTrajectoryRegressor, is_trajectory_container
+from ._base import BaseTrajectoryRegressor
 from ._scoring import multistep_errors
 from ._threshold_path import threshold_path
-from ._trajectories import check_trajectories
+from ._trajectories import check_trajectories, is_trajectory_container
 from ._vector_field import VectorFieldRegressor
 
 __all__ = [
