@@ -79,9 +79,10 @@ import numpy as np  # noqa: E402
 from threadpoolctl import threadpool_info, threadpool_limits  # noqa: E402
 
 from sk_hamiltonian import DerivativeTransformer, HamiltonianRegressor, config_context  # noqa: E402
-from sk_hamiltonian._kernels import numba_available  # noqa: E402
+from sk_hamiltonian import _fit_steps as steps  # noqa: E402
 from sk_hamiltonian._design import quadrature_nodes  # noqa: E402
 from sk_hamiltonian._design_operator import DesignOperator  # noqa: E402
+from sk_hamiltonian._numba import numba_available  # noqa: E402
 from sk_hamiltonian.datasets import load_system, make_trajectories  # noqa: E402
 
 SYSTEM = load_system("double_pendulum")
@@ -411,8 +412,7 @@ def iteration_against_gram(degree, M):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         data = model._training_data(Xt, None, None)
-        model._set_up_space(data)
-    space = model._space
+        space = steps.build_space(model, data)
     n_states = data.states.shape[0]
     operator = DesignOperator(space, data, "derivatives", quadrature_nodes(space), "gradient")
     x = np.random.default_rng(0).normal(size=(space.n_terms, 1))
@@ -421,7 +421,7 @@ def iteration_against_gram(degree, M):
         operator.rmatvec(operator.matvec(x))
 
     def gram():
-        model._accumulate(data).result()
+        steps.normal_equations(model, space, data)
 
     return best(iteration, 2) / n_states, best(gram, 1) / n_states, space.n_terms
 

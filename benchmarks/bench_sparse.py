@@ -31,7 +31,7 @@ import numpy as np  # noqa: E402
 from threadpoolctl import threadpool_limits  # noqa: E402
 
 from sk_hamiltonian import DerivativeTransformer, HamiltonianRegressor, config_context  # noqa: E402
-from sk_hamiltonian._kernels import numba_available  # noqa: E402
+from sk_hamiltonian._numba import numba_available  # noqa: E402
 from sk_hamiltonian.datasets import henon_heiles, make_trajectories  # noqa: E402
 
 

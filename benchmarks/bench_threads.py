@@ -1,6 +1,6 @@
 """One or two BLAS threads for the Gram update ``A^T A`` (``dsyrk``), by size.
 
-The measurement behind the thread choice of ``sk_hamiltonian._kernels.threads``:
+The measurement behind the thread choice of ``sk_hamiltonian._threads``:
 best of 3 wall-clock times of one rank-k update with 1 and with 2 BLAS
 threads, for designs of 20 000 rows (40 000 for the largest), with the
 machine's load average before and after. Run ``python benchmarks/bench_threads.py``

@@ -21,6 +21,7 @@ from sklearn.base import clone  # noqa: E402
 from threadpoolctl import threadpool_limits  # noqa: E402
 
 from sk_hamiltonian import DerivativeTransformer, HamiltonianRegressor  # noqa: E402
+from sk_hamiltonian._threshold_path import fit_along_path  # noqa: E402
 from sk_hamiltonian.datasets import henon_heiles, make_trajectories  # noqa: E402
 
 THRESHOLDS = [0.0, 1e-3, 1e-2, 3e-2, 0.1]
@@ -35,7 +36,7 @@ def main():
             estimator = HamiltonianRegressor(degree=degree)
             for _ in range(2):
                 start = time.process_time()
-                clone(estimator)._fit_threshold_path(Xt, THRESHOLDS)
+                fit_along_path(clone(estimator), Xt, THRESHOLDS)
                 path = time.process_time() - start
                 start = time.process_time()
                 for threshold in THRESHOLDS:

@@ -8,7 +8,7 @@ import os
 import threading
 from contextlib import contextmanager
 
-from ._kernels import numba_available
+from ._numba import numba_available
 
 _KERNELS = ("auto", "numpy", "numba")
 # The environment variable SK_HAMILTONIAN_KERNELS sets the process-wide
@@ -93,8 +93,6 @@ def set_config(kernels=None):
     if kernels not in _KERNELS:
         raise ValueError(f"kernels must be one of {list(_KERNELS)}; got {kernels!r}.")
     if kernels == "numba":
-        from ._kernels import numba_available
-
         if not numba_available():
             raise ImportError(
                 "kernels='numba' needs numba, which cannot be imported; install it with "

@@ -1,7 +1,8 @@
 """Training data and the least-squares designs built from it.
 
 The regressors fit linear models, so every fit is a least-squares problem
-``A c ≈ b`` assembled in row blocks from a :class:`TrainingData`:
+``A c ≈ b`` assembled in row blocks from a
+:class:`~sk_hamiltonian._training_data.TrainingData`:
 
 - ``fit_on="derivatives"``: one row group per state, the basis (or its
   gradient) at the state against the estimated time derivative;
@@ -15,7 +16,8 @@ The regressors fit linear models, so every fit is a least-squares problem
   exact to ``O(dt**4)`` for the true field, so it learns the Hamiltonian
   itself rather than the AVF method's modified one.
 
-Every kind is a :class:`Quadrature`: the points where a row group evaluates
+Every kind is a :class:`~sk_hamiltonian._training_data.Quadrature`: the
+points where a row group evaluates
 the basis, with their weights, and the rate it is fitted to.
 
 Blocks stay a few tens of megabytes whatever the number of samples, so the
@@ -27,7 +29,6 @@ import math
 import numpy as np
 
 from ._space.fourier import phase_nodes
-from ._space.legendre import gauss_on_unit
 from ._space.workspace import scratch
 
 # Entries of one design block (float64): 8 million is 64 MB, held in the
@@ -35,155 +36,6 @@ from ._space.workspace import scratch
 # thousands of rows, which it needs to run near peak speed (measured on
 # double-pendulum fits: 16 MB blocks took 15 % longer).
 BLOCK_ENTRIES = 8_000_000
-
-
-class TrainingData:
-    """States, targets and (optionally) steps and weights of one fit.
-
-    Parameters
-    ----------
-    states : ndarray of shape (n_samples, n_states)
-        States the derivative fit evaluates the basis at.
-    derivatives : ndarray of shape (n_samples, n_targets) or None
-        Targets of the derivative fit.
-    sample_weight : ndarray of shape (n_samples,) or None
-        Weights of the states.
-    trajectories : list of (times, states) or None
-        The trajectories the states came from (derivative layout input), for
-        the steps fit and the energy check.
-    trajectory_weight : ndarray of shape (n_trajectories,) or None
-        Weights of the trajectories, applied to their steps.
-    """
-
-    def __init__(self, states, derivatives, sample_weight=None, trajectories=None,
-                 trajectory_weight=None):
-        self.states = states
-        self.derivatives = derivatives
-        self.sample_weight = sample_weight
-        self.trajectories = trajectories
-        self.trajectory_weight = trajectory_weight
-
-    def steps(self, space):
-        """Observed steps ``(x0, dx, dt, weight)`` of every trajectory.
-
-        ``dx`` takes periodic variables the short way round the circle, so a
-        trajectory given with wrapped angles still has small steps.
-        """
-        if self.trajectories is None:
-            raise ValueError(
-                "fit_on='steps' fits the observed steps of trajectories: pass the "
-                "output of DerivativeTransformer (trajectories with their times), not "
-                "2-D states with derivatives."
-            )
-        starts, moves, dts, weights = [], [], [], []
-        for k, (t, S) in enumerate(self.trajectories):
-            starts.append(S[:-1])
-            moves.append(space.wrap_difference(np.diff(S, axis=0)))
-            dts.append(np.diff(t))
-            w = 1.0 if self.trajectory_weight is None else self.trajectory_weight[k]
-            weights.append(np.full(S.shape[0] - 1, w))
-        x0 = np.concatenate(starts)
-        if x0.shape[0] == 0:
-            raise ValueError(
-                "fit_on='steps' needs trajectories with at least two samples; every "
-                "trajectory here has one."
-            )
-        return x0, np.concatenate(moves), np.concatenate(dts), np.concatenate(weights)
-
-    def pairs(self, space):
-        """Pairs of consecutive steps ``(x0, x1, x2, h1, h2, weight)`` of every trajectory."""
-        self._check_pairs()
-        parts = []
-        for k, (t, S) in enumerate(self.trajectories):
-            moves = space.wrap_difference(np.diff(S, axis=0))
-            h = np.diff(t)
-            w = 1.0 if self.trajectory_weight is None else self.trajectory_weight[k]
-            parts.append((S[:-2], S[1:-1], S[2:], moves[:-1] + moves[1:], h[:-1], h[1:],
-                          np.full(S.shape[0] - 2, w)))
-        return tuple(np.concatenate(column) for column in zip(*parts))
-
-    def _check_pairs(self):
-        if self.trajectories is None:
-            raise ValueError(
-                "fit_on='simpson' fits pairs of observed steps of trajectories: pass "
-                "the output of DerivativeTransformer (trajectories with their times), "
-                "not 2-D states with derivatives."
-            )
-        short = [k for k, (_, S) in enumerate(self.trajectories) if S.shape[0] < 3]
-        if short:
-            raise ValueError(
-                f"fit_on='simpson' needs at least three samples per trajectory (one pair "
-                f"of steps); {len(short)} of {len(self.trajectories)} trajectories have "
-                f"fewer (the first is number {short[0]}). Drop them, or fit with "
-                f"fit_on='steps'."
-            )
-
-    def quadrature(self, space, fit_on, n_nodes):
-        """The :class:`Quadrature` of the fit's row groups."""
-        if fit_on == "steps":
-            x0, dx, dt, weight = self.steps(space)
-            nodes, node_weights = gauss_on_unit(n_nodes)
-            points = [(x0 + s * dx, w) for s, w in zip(nodes, node_weights)]
-            return Quadrature(points, dx / dt[:, None], weight)
-        if fit_on == "simpson":
-            x0, x1, x2, move, h1, h2, weight = self.pairs(space)
-            # Simpson's rule on two intervals of any lengths, normalized to sum to one.
-            points = [
-                (x0, (2.0 - h2 / h1) / 6.0),
-                (x1, (h1 + h2) ** 2 / (6.0 * h1 * h2)),
-                (x2, (2.0 - h1 / h2) / 6.0),
-            ]
-            return Quadrature(points, move / (h1 + h2)[:, None], weight)
-        return Quadrature([(self.states, 1.0)], self.derivatives, self.sample_weight)
-
-    def n_rows(self, fit_on):
-        """Number of state (or step) row groups the fit will have."""
-        if fit_on == "steps" and self.trajectories is not None:
-            return sum(max(0, S.shape[0] - 1) for _, S in self.trajectories)
-        if fit_on == "simpson":
-            self._check_pairs()
-            return sum(S.shape[0] - 2 for _, S in self.trajectories)
-        return self.states.shape[0]
-
-
-class Quadrature:
-    """Where a fit's row groups evaluate the basis, and what they are fitted to.
-
-    Row group ``r`` fits ``sum_k w_k[r] f(X_k[r]) ≈ rate[r]`` for the model's
-    field (or its gradient) ``f``.
-
-    Parameters
-    ----------
-    points : list of (ndarray of shape (n_groups, n_states), float or ndarray of shape (n_groups,))
-        The points ``X_k`` and their weights ``w_k``.
-    rate : ndarray of shape (n_groups, n_states) or (n_groups, n_targets)
-        The time derivative (or mean rate of change) each group fits.
-    weight : ndarray of shape (n_groups,) or None
-        Weights of the row groups.
-    """
-
-    def __init__(self, points, rate, weight):
-        self.points = points
-        self.rate = rate
-        self.weight = weight
-        self.n_groups = rate.shape[0]
-
-    def scale(self, values, w, rows):
-        """Multiply ``values`` (rows on the last axis) in place by a point's weights."""
-        if np.isscalar(w):
-            if w != 1.0:
-                values *= w
-        else:
-            values *= w[rows]
-        return values
-
-    def weighted_sum(self, function, rows):
-        """``sum_k w_k function(X_k[rows])``, each result with the rows on its last axis."""
-        total = None
-        for X, w in self.points:
-            part = self.scale(function(X[rows]), w, rows)
-            total = part if total is None else total + part
-        return total
 
 
 def symplectic_targets(y):

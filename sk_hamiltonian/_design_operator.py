@@ -22,7 +22,7 @@ freedom (see :mod:`._design`).
 import numpy as np
 
 from ._design import symplectic_targets
-from ._kernels.threads import map_on_idle_cores
+from ._threads import map_on_idle_cores
 from ._space.contraction import ContractionPlan
 from ._space.fourier import fourier_moments
 from ._space.legendre import legendre_moments

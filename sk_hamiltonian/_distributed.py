@@ -17,10 +17,15 @@ import warnings
 
 import numpy as np
 
-from ._space import ModelSpace
+from . import _fit_steps as steps
 from ._space.space import outside_domain
-from ._streaming import PartialFitState
+from ._streaming import PartialFitState, ShapeOnly
 from .exceptions import DomainWarning
+
+
+def is_dask(X):
+    """Whether ``X`` is a dask collection (without importing dask)."""
+    return type(X).__module__.split(".")[0] == "dask" and hasattr(X, "__dask_graph__")
 
 
 class _Counted:
@@ -34,11 +39,18 @@ class _Counted:
         return self._n_rows
 
 
-def _chunk_state(estimator, X, y, weight):
+class _Box:
+    """Training data as the model space's builder sees them: two states spanning the box."""
+
+    def __init__(self, states):
+        self.states, self.sample_weight = states, None
+
+
+def _chunk_state(estimator, design, X, y, weight):
     """On a worker: the normal equations and statistics of one chunk."""
     data = estimator._training_data(X, y, weight, reset=False)
-    state = PartialFitState(estimator, estimator._normal_accumulator(), data.states.shape[1])
-    state.add(estimator, data, estimator._training_step(data))
+    state = PartialFitState(estimator, design.accumulator(), data.states.shape[1])
+    state.add(design, data, data.median_step())
     return state
 
 
@@ -51,10 +63,10 @@ def _chunk_rows(estimator, X, y, weight):
     return estimator._training_data(X, y, weight, reset=False).n_rows(estimator.fit_on)
 
 
-def _chunk_residual(estimator, X, y, weight, coef, keep):
+def _chunk_residual(estimator, design, X, y, weight, coef, keep):
     """On a worker: ``A_k^T (b_k - A_k coef)`` of one chunk, restricted to ``keep``."""
     data = estimator._training_data(X, y, weight, reset=False)
-    operator = estimator._design_operator(data)
+    operator = design.operator(data)
     full = np.zeros((keep.size,) + coef.shape[1:])
     full[keep] = coef
     r = operator.targets - operator.matvec(full if full.ndim == 2 else full[:, None])
@@ -132,9 +144,6 @@ def fit_distributed(estimator, X, y=None, sample_weight=None):
     first_X, first_y, first_w = dask.compute(X_blocks[0], y_blocks[0], weights[0])
     data = estimator._training_data(first_X, first_y, first_w)
     n_states = data.states.shape[1]
-    estimator._check_dimensions(n_states)
-    estimator.periodic_ = estimator._fit_periodic(n_states)
-    estimator.powers_ = estimator._index_set(n_states)
     flat = states.reshape(-1, n_states)
     if estimator.domain is None:
         if sample_weight is not None:
@@ -142,33 +151,36 @@ def fit_distributed(estimator, X, y=None, sample_weight=None):
             if layout:
                 positive = da.repeat(positive, X.shape[1])
             flat = flat[positive.rechunk((flat.chunks[0],))]
-        low, high = dask.compute(flat.min(axis=0), flat.max(axis=0))
-        estimator.domain_ = estimator._fit_domain(np.vstack([low, high]))
+        box = np.vstack(dask.compute(flat.min(axis=0), flat.max(axis=0)))
     else:
-        box = np.asarray(estimator.domain, dtype=float)
-        centre = box.mean(axis=1) if box.ndim == 2 else np.zeros(n_states)
-        estimator.domain_ = estimator._fit_domain(np.vstack([centre, centre]))
+        # The explicit box is checked on its centre (inside it); the states
+        # outside are counted over all chunks below.
+        explicit = np.asarray(estimator.domain, dtype=float)
+        centre = explicit.mean(axis=1) if explicit.ndim == 2 else np.zeros(n_states)
+        box = np.vstack([centre, centre])
+    # The size check needs the rows of every chunk: after the box.
+    space = steps.build_space(estimator, _Box(box), size_data=ShapeOnly(data))
+    if estimator.domain is not None:
         outside = flat.map_blocks(
-            lambda S: outside_domain(S, estimator.domain_, estimator.periodic_)[:, None],
+            lambda S: outside_domain(S, space.domain, space.periodic)[:, None],
             chunks=(flat.chunks[0], (1,)), dtype=bool,
         )
         fraction = float(outside.mean().compute())
         if fraction > 0:
             warnings.warn(
                 f"{fraction:.1%} of the training states lie outside the domain "
-                f"{estimator.domain_.tolist()}, where the model is not trusted.",
+                f"{space.domain.tolist()}, where the model is not trusted.",
                 DomainWarning, stacklevel=4,
             )
-    estimator._space = ModelSpace(estimator.domain_, estimator.powers_, estimator.periodic_)
     template = dask.delayed(estimator, pure=True)
     n_rows = sum(dask.compute(*[
         dask.delayed(_chunk_rows)(template, Xb, yb, wb)
         for Xb, yb, wb in zip(X_blocks, y_blocks, weights)
     ]))
     estimator._check_size(_Counted(data, n_rows))
-
+    design = dask.delayed(estimator._design(space), pure=True)
     parts = [
-        dask.delayed(_chunk_state)(template, Xb, yb, wb)
+        dask.delayed(_chunk_state)(template, design, Xb, yb, wb)
         for Xb, yb, wb in zip(X_blocks, y_blocks, weights)
     ]
     state = _tree_sum(parts, _merge).compute()
@@ -176,12 +188,12 @@ def fit_distributed(estimator, X, y=None, sample_weight=None):
     def residual(keep):
         def refine(coef):
             terms = [
-                dask.delayed(_chunk_residual)(template, Xb, yb, wb, coef, keep)
+                dask.delayed(_chunk_residual)(template, design, Xb, yb, wb, coef, keep)
                 for Xb, yb, wb in zip(X_blocks, y_blocks, weights)
             ]
             return _tree_sum(terms, np.add).compute()
 
         return refine
 
-    estimator._solve_accumulated(state, data, residual)
-    return estimator
+    solution = steps.solve_normal_equations(estimator, space, state.normal_equations(), residual)
+    return steps.set_fitted(estimator, space, solution, data, solver="normal", statistics=state)

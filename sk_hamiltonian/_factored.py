@@ -8,7 +8,7 @@ So::
     A^T A = sum_i T_i^T (B^T B) T_i,        A^T b = sum_i T_i^T (B^T b_i),
 
 and the samples are visited once, by one rank-k update of ``B^T B``, instead of
-once per variable (:class:`~sk_hamiltonian._solvers.NormalEquations` with the
+once per variable (:class:`~sk_hamiltonian._solvers.normal.NormalEquations` with the
 groups of :func:`~sk_hamiltonian._design.column_groups`). The maps ``T_i`` are
 sparse (at most ``degree / 2 + 1`` entries per function), so applying them
 costs about ``n_terms * n_values * degree / 2`` multiply-adds per variable, once:
@@ -29,8 +29,8 @@ RESULT_ROWS = 128
 class FactoredNormalEquations:
     """``A^T A`` and ``A^T b`` of a gradient design, accumulated on its value design.
 
-    The counterpart of :class:`~sk_hamiltonian._solvers.NormalEquations`
-    (same ``add_blocks``, ``+=`` and ``result``), for the blocks of
+    The counterpart of :class:`~sk_hamiltonian._solvers.normal.NormalEquations`
+    (same ``add_blocks``, ``+=``, ``result`` and ``btb``), for the blocks of
     :func:`~sk_hamiltonian._design.value_blocks`.
 
     Parameters
@@ -64,6 +64,12 @@ class FactoredNormalEquations:
         """Add another accumulator of the same design (e.g. from another chunk)."""
         self.values += other.values
         return self
+
+    @property
+    def btb(self):
+        """``b^T b`` of the gradient design: the targets of every variable, squared and summed."""
+        products = self.values.btb
+        return float(np.trace(products)) if np.ndim(products) == 2 else products
 
     def result(self):
         """The accumulated ``(A^T A, A^T b)`` of the gradient design."""
@@ -113,7 +119,7 @@ def _transpose_into(a, out):
 
     ``np.ascontiguousarray(a.T)`` reads across the cache: 1.9 s for a
     7 314 x 5 985 matrix, against 0.15 s by tiles (as in
-    :func:`~sk_hamiltonian._solvers.mirror_upper`; one timing each).
+    :func:`~sk_hamiltonian._solvers.normal.mirror_upper`; one timing each).
     """
     rows, columns = a.shape
     for start in range(0, rows, MIRROR_TILE):

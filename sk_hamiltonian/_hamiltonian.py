@@ -4,16 +4,16 @@ import warnings
 
 import numpy as np
 
-from . import _kernels
 from ._base import DOMAIN_SLACK, BaseTrajectoryRegressor
 from ._config import use_numba
 from ._conservation import decorrelated, energy_trend
-from ._design import column_groups, hamiltonian_blocks, quadrature_nodes, value_blocks
-from ._factored import FactoredNormalEquations
-from ._design_operator import DesignOperator
-from ._integrate import Dynamics, apply_structure
-from ._kernels.simulate import KernelModel
-from ._space import ModelSpace
+from ._design import quadrature_nodes
+from ._integrate import Dynamics
+from ._integrate.compiled import KernelModel
+from ._kernels import LANE_ROWS
+from ._least_squares import HamiltonianDesign
+from ._space import ModelSpace, compiled
+from ._structure import apply_structure
 from ._trajectories import check_n_states
 from .exceptions import ConservationWarning
 
@@ -241,9 +241,6 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
     def _check_dimensions(self, n_states):
         check_n_states(n_states)
 
-    def _rows_per_sample(self, n_states):
-        return n_states
-
     def _n_terms(self, n_states):
         return super()._n_terms(n_states) + (n_states // 2 if self.damping else 0)
 
@@ -267,49 +264,8 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
                 f"(momentum_degree, separable, max_interaction, couplings)."
             )
 
-    def _design_blocks(self, data, grouped=False):
-        space = self._space
-        return hamiltonian_blocks(
-            space, data, self.fit_on, quadrature_nodes(space), damping=self.damping,
-            grouped=grouped,
-        )
-
-    def _column_groups(self):
-        return column_groups(self._space, self.damping)
-
-    def _factored_maps(self):
-        # The rows of every variable are gradients of one value basis: where
-        # its one Gram matrix costs fewer multiply-adds than the groups' (the
-        # dense spaces: n_states times fewer), accumulate that (_factored).
-        maps = self._space.derivative_maps()
-        return maps if maps.pays(self._column_groups()) else None
-
-    def _normal_accumulator(self):
-        maps = self._factored_maps()
-        if maps is None:
-            return super()._normal_accumulator()
-        d = self._space.n_states // 2
-        return FactoredNormalEquations(maps, range(d, 2 * d) if self.damping else ())
-
-    def _normal_blocks(self, data, accumulator):
-        if not isinstance(accumulator, FactoredNormalEquations):
-            return super()._normal_blocks(data, accumulator)
-        return value_blocks(
-            accumulator.maps, data, self.fit_on, quadrature_nodes(self._space),
-            damping=self.damping,
-        )
-
-    def _design_operator(self, data):
-        space = self._space
-        return DesignOperator(
-            space, data, self.fit_on, quadrature_nodes(space), "gradient", damping=self.damping
-        )
-
-    def _n_unknowns(self):
-        return self._space.n_terms + self._n_nonnegative()
-
-    def _n_nonnegative(self):
-        return self._space.n_states // 2 if self.damping else 0
+    def _design(self, space):
+        return HamiltonianDesign(space, self.fit_on, self.damping)
 
     def _set_coef(self, coef):
         space = self._space
@@ -398,7 +354,7 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
         # one call; anything else, and any state that is not finite, goes the
         # general way.
         if not (use_numba() and type(X) is np.ndarray and X.dtype == np.float64 and X.ndim == 2
-                and 0 < X.shape[0] < _kernels.LANE_ROWS and X.shape[1] == self.n_features_in_
+                and 0 < X.shape[0] < LANE_ROWS and X.shape[1] == self.n_features_in_
                 and X.flags.c_contiguous and not hasattr(self, "feature_names_in_")):
             return None
         # The fitted attributes as fit left them (the kernel does not check
@@ -408,13 +364,13 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
         if not (_plain(coef, (self._eval_space.n_terms,)) and _plain(damping, (m // 2,))
                 and _plain(domain, (m, 2)) and _plain(periodic, (m,), np.bool_)):
             return None
-        return _kernels.checked_field(self._eval_space, X, coef, damping, domain, periodic,
+        return compiled.checked_field(self._eval_space, X, coef, damping, domain, periodic,
                                       DOMAIN_SLACK)
 
     def _vector_field(self, X):
         if use_numba():
             # One compiled pass with the structure applied (zero damping is none).
-            return _kernels.field(self._eval_space, X, self._eval_coef, self.damping_)
+            return compiled.field(self._eval_space, X, self._eval_coef, self.damping_)
         return apply_structure(self._gradient(X), self._damping())
 
     def _jacobian(self, X):

@@ -30,7 +30,7 @@ The embedding is drawn from a fixed seed, so that a fit is reproducible.
 import numpy as np
 from scipy.linalg import blas
 
-from ._kernels.threads import gram_flops, limit_blas
+from ._threads import gram_flops, limit_blas
 from ._solvers import mirror_upper
 
 # Rows of the sketch per column of the design. A sketch of r n rows leaves
@@ -49,7 +49,7 @@ SKETCH_SEED = 0
 class DesignSketch:
     """``S A`` accumulated over row blocks of a design, ``S`` a CountSketch.
 
-    The counterpart of :class:`~sk_hamiltonian._solvers.NormalEquations`
+    The counterpart of :class:`~sk_hamiltonian._solvers.normal.NormalEquations`
     for ``solver="sketch"``: the same blocks and column groups, but one pass
     of additions per block instead of a rank-k update.
 

@@ -1,4 +1,4 @@
-"""What ``partial_fit`` keeps between calls: the normal equations and a few running statistics.
+"""``partial_fit``: what it keeps between calls (the normal equations, a few running statistics), and one call.
 
 Everything here has a size fixed by the model space (``n_columns**2`` for the
 normal matrix) and the number of state variables, never by the number of
@@ -6,6 +6,8 @@ samples seen, so fitting a long stream of chunks runs in constant memory.
 """
 
 import numpy as np
+
+from . import _fit_steps as steps
 
 
 # Model-space parameters that must not change between partial_fit calls.
@@ -35,7 +37,7 @@ class PartialFitState:
         Whose model-space parameters are recorded.
     accumulator : NormalEquations or FactoredNormalEquations
         An empty accumulator of the design's normal equations
-        (``estimator._normal_accumulator()``).
+        (:meth:`~sk_hamiltonian._least_squares.Design.accumulator`).
     n_states : int
         State variables.
     """
@@ -68,9 +70,9 @@ class PartialFitState:
                     f"partial_fit calls, or start over with fit (or a clone)."
                 )
 
-    def add(self, estimator, data, step):
-        """Accumulate one chunk: its normal equations (by ``estimator``), states and training step."""
-        estimator._accumulate(data, accumulator=self.accumulator)
+    def add(self, design, data, step):
+        """Accumulate one chunk: its normal equations (by ``design``), states and training step."""
+        design.accumulate(data, accumulator=self.accumulator)
         states = data.states
         n = states.shape[0]
         # Chan et al.'s parallel update of the mean and sum of squared deviations.
@@ -125,8 +127,8 @@ class PartialFitState:
         return self
 
     def normal_equations(self):
-        """The accumulated ``(A^T A, A^T b)``."""
-        return self.accumulator.result()
+        """The accumulated ``(A^T A, A^T b, b^T b)``."""
+        return (*self.accumulator.result(), self.accumulator.btb)
 
     def scale(self):
         """Standard deviation of every state variable over all samples seen (1 where zero)."""
@@ -146,3 +148,54 @@ class PartialFitState:
         order = np.argsort(medians)
         cumulative = np.cumsum(counts[order])
         return float(medians[order][np.searchsorted(cumulative, cumulative[-1] / 2)])
+
+
+class ShapeOnly:
+    """A chunk's data as ``_check_size`` sees it: shapes only, never underdetermined.
+
+    Each chunk of ``partial_fit`` may be smaller than the number of
+    unknowns: only the accumulated equations must determine them.
+    """
+
+    def __init__(self, data):
+        self.states, self.derivatives = data.states, data.derivatives
+
+    def n_rows(self, fit_on):
+        return np.inf
+
+
+def partial_fit_chunk(estimator, X, y=None, sample_weight=None):
+    """One call of ``estimator.partial_fit``: add the chunk, solve, set the fitted attributes.
+
+    The first call builds the model space (on the explicit ``domain``) and
+    starts a :class:`PartialFitState`, kept as ``estimator._partial``; each
+    call adds the chunk's normal equations and solves all of them so far
+    (steps (c) and (d) of :mod:`sk_hamiltonian._fit_steps`).
+    """
+    state = getattr(estimator, "_partial", None)
+    if state is None:
+        estimator._validate_params()
+        estimator._check_integer_params()
+        if estimator.solver not in ("auto", "normal"):
+            raise ValueError(
+                f"partial_fit accumulates the normal equations, so it needs "
+                f"solver='auto' or 'normal'; got solver={estimator.solver!r}."
+            )
+    else:
+        state.check_parameters(estimator)
+    data = estimator._training_data(X, y, sample_weight, reset=state is None)
+    if state is None:
+        space = steps.build_space(estimator, data, size_data=ShapeOnly(data))
+        design = estimator._design(space)
+        state = PartialFitState(estimator, design.accumulator(), data.states.shape[1])
+    else:
+        space = estimator._space
+        design = estimator._design(space)
+        estimator._check_size(ShapeOnly(data))
+        # Frames: _warn_n_outside, _warn_outside, here, partial_fit: the
+        # caller is the next.
+        estimator._warn_outside(data.states, what="the training states", stacklevel=4)
+    state.add(design, data, data.median_step())
+    estimator._partial = state
+    solution = steps.solve_normal_equations(estimator, space, state.normal_equations())
+    return steps.set_fitted(estimator, space, solution, data, solver="normal", statistics=state)

@@ -137,6 +137,15 @@ def pack_derivatives(times, states, derivatives, observed, as_array):
     return np.stack(packed) if as_array else packed
 
 
+def is_trajectory_container(X):
+    """Whether ``X`` is a 3-D array or a list of 2-D arrays (trajectories)."""
+    if hasattr(X, "ndim") and not hasattr(X, "columns"):
+        return X.ndim == 3
+    if isinstance(X, (list, tuple)) and len(X) > 0:
+        return np.ndim(X[0]) == 2
+    return False
+
+
 def unpack_derivatives(Xt):
     """Split the output of :class:`~sk_hamiltonian.DerivativeTransformer`.
 

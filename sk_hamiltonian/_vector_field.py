@@ -3,10 +3,10 @@
 import numpy as np
 
 from ._base import BaseTrajectoryRegressor
-from ._design import quadrature_nodes, vector_field_blocks
-from ._design_operator import DesignOperator
+from ._design import quadrature_nodes
 from ._integrate import Dynamics
-from ._kernels.simulate import KernelModel
+from ._integrate.compiled import KernelModel
+from ._least_squares import VectorFieldDesign
 
 
 class VectorFieldRegressor(BaseTrajectoryRegressor):
@@ -126,28 +126,8 @@ class VectorFieldRegressor(BaseTrajectoryRegressor):
 
     _include_constant = True
 
-    def _rows_per_sample(self, n_states):
-        return 1
-
-    def _design_blocks(self, data, grouped=False):
-        # Every row touches every column: one group.
-        space = self._space
-        return vector_field_blocks(
-            space, data, self.fit_on, quadrature_nodes(space, of_gradient=False)
-        )
-
-    def _column_groups(self):
-        # Every row touches every column: one group.
-        return None
-
-    def _design_operator(self, data):
-        space = self._space
-        return DesignOperator(
-            space, data, self.fit_on, quadrature_nodes(space, of_gradient=False), "value"
-        )
-
-    def _n_unknowns(self):
-        return self._space.n_terms
+    def _design(self, space):
+        return VectorFieldDesign(space, self.fit_on)
 
     def _set_coef(self, coef):
         self.coef_ = coef

@@ -68,9 +68,10 @@ def test_maps_of_the_value_basis_give_the_gradients(periodic, options):
 
 def _both(model, data):
     """Factored and grouped normal equations of a fitted model on ``data``."""
-    factored = model._accumulate(data)
-    grouped = NormalEquations(model._n_unknowns(), model._column_groups()).add_blocks(
-        model._design_blocks(data, grouped=True))
+    design = model._design(model._space)
+    factored = design.accumulate(data)
+    grouped = NormalEquations(design.n_columns, design.groups).add_blocks(
+        design.blocks(data, grouped=True))
     return factored, factored.result(), grouped.result()
 
 
@@ -111,14 +112,16 @@ def test_blocks_and_tiles_of_the_maps_products_cover_every_entry(layout, monkeyp
 def test_factored_route_only_where_it_costs_less(layout):
     dense = HamiltonianRegressor(degree=4).fit(layout)
     maps = dense._space.derivative_maps()
-    assert maps.n_values ** 2 < sum(g.size**2 for g in dense._column_groups())
-    assert isinstance(dense._normal_accumulator(), FactoredNormalEquations)
+    design = dense._design(dense._space)
+    assert maps.n_values ** 2 < sum(g.size**2 for g in design.groups)
+    assert isinstance(design.accumulator(), FactoredNormalEquations)
     # Momenta alone, positions coupled in one pair: groups of 4, 4, 10 and
     # 10 functions (232 products per row) against a value basis of 16 (256).
     chain = HamiltonianRegressor(degree=4, separable=True, couplings=[(2, 3)]).fit(layout)
     maps = chain._space.derivative_maps()
-    assert maps.n_values ** 2 > sum(g.size**2 for g in chain._column_groups())
-    assert type(chain._normal_accumulator()) is NormalEquations
+    design = chain._design(chain._space)
+    assert maps.n_values ** 2 > sum(g.size**2 for g in design.groups)
+    assert type(design.accumulator()) is NormalEquations
 
 
 # Finite differences of a conservative system fit no friction.
@@ -128,19 +131,21 @@ def test_chunks_add_up_to_the_whole(layout):
     data = model._training_data(layout, None, None, reset=False)
     first = model._training_data(layout[:30], None, None, reset=False)
     second = model._training_data(layout[30:], None, None, reset=False)
-    total = model._accumulate(first)
-    total += model._accumulate(second)
+    design = model._design(model._space)
+    total = design.accumulate(first)
+    total += design.accumulate(second)
     gram, rhs = total.result()
-    expected_gram, expected_rhs = model._accumulate(data).result()
+    expected_gram, expected_rhs = design.accumulate(data).result()
     assert relative(gram, expected_gram) < ROUND_OFF
     assert relative(rhs, expected_rhs) < ROUND_OFF
-    assert total.n_rows == model._accumulate(data).n_rows
+    assert total.n_rows == design.accumulate(data).n_rows
 
 
 @pytest.mark.filterwarnings("ignore::sk_hamiltonian.ConservationWarning")
 def test_empty_accumulator_gives_zero_equations(layout):
     model = HamiltonianRegressor(degree=3, damping=True).fit(layout)
-    gram, rhs = model._normal_accumulator().result()
-    n = model._n_unknowns()
+    design = model._design(model._space)
+    gram, rhs = design.accumulator().result()
+    n = design.n_columns
     assert gram.shape == (n, n) and rhs.shape == (n,)
     assert not gram.any() and not rhs.any()

@@ -13,7 +13,7 @@ import pytest
 
 import sk_hamiltonian
 from sk_hamiltonian import HamiltonianRegressor, VectorFieldRegressor, config_context
-from sk_hamiltonian._kernels import numba_available
+from sk_hamiltonian._numba import numba_available
 from sk_hamiltonian._space import ModelSpace, flat, index_set
 from sk_hamiltonian._space.readable import ReadableBasis
 from sk_hamiltonian.datasets import henon_heiles, single_pendulum

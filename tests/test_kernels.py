@@ -8,7 +8,7 @@ import pytest
 
 import sk_hamiltonian
 from sk_hamiltonian import config_context, get_config, set_config
-from sk_hamiltonian._kernels import numba_available
+from sk_hamiltonian._numba import numba_available
 from sk_hamiltonian._space import ModelSpace, index_set
 
 # The process-wide default (SK_HAMILTONIAN_KERNELS may set it for a whole run).
@@ -60,7 +60,7 @@ def test_config_default_and_choices():
 
 
 def test_numba_choice_without_numba_says_how_to_install(monkeypatch):
-    monkeypatch.setattr(sk_hamiltonian._kernels, "_NUMBA", False)
+    monkeypatch.setattr(sk_hamiltonian._numba, "_NUMBA", False)
     with pytest.raises(ImportError, match=r"sk_hamiltonian\[fast\]"):
         set_config(kernels="numba")
     assert get_config()["kernels"] == DEFAULT
@@ -139,7 +139,8 @@ def test_coefficients_changed_in_place_are_seen(n_samples):
 
 
 def test_lanes_split_batches_into_equal_passes():
-    from sk_hamiltonian._kernels import MAX_LANES, _lanes
+    from sk_hamiltonian._kernels import MAX_LANES
+    from sk_hamiltonian._kernels import lanes as _lanes
 
     for n in [1, 15, 16, MAX_LANES, MAX_LANES + 1, 1000, 4 * MAX_LANES]:
         lanes = _lanes(n)
@@ -150,7 +151,7 @@ def test_lanes_split_batches_into_equal_passes():
 
 
 def test_children_by_parent_groups_every_node_under_its_parent():
-    from sk_hamiltonian._kernels.tree import children_by_parent, tree_arrays
+    from sk_hamiltonian._space.kernel_tree import children_by_parent, tree_arrays
 
     space = _space(*SPACES[4])
     tree, _ = tree_arrays(space)
@@ -171,7 +172,8 @@ def test_children_by_parent_groups_every_node_under_its_parent():
 def test_batches_in_lanes_agree(spec):
     # Around the batch sizes where the lanes start, fill a pass, and leave a
     # short last pass (257: two passes of 136 lanes, 15 of them repeats).
-    from sk_hamiltonian._kernels import LANE_ROWS, MAX_LANES, _contract_in_lanes, _in_lanes
+    from sk_hamiltonian._kernels import LANE_ROWS, MAX_LANES
+    from sk_hamiltonian._space.compiled import _contract_in_lanes, in_lanes
 
     space = _space(*spec)
     coef = np.random.default_rng(2).standard_normal(space.n_terms)
@@ -195,7 +197,7 @@ def test_batches_in_lanes_agree(spec):
             assert a.shape == b.shape
             np.testing.assert_allclose(b, a, rtol=0, atol=1e-12 * np.abs(a).max())
         expected = n >= LANE_ROWS and space._flat(1, kernels="numba") is None
-        assert _in_lanes(space, coef, 1, n) == expected
+        assert in_lanes(space, coef, 1, n) == expected
 
 
 def test_one_variable_results_outlive_the_next_call():
@@ -370,7 +372,7 @@ def _blas_threads_now():
 
 
 def test_limit_blas_small_work_runs_on_one_thread(monkeypatch):
-    from sk_hamiltonian._kernels import threads
+    from sk_hamiltonian import _threads as threads
 
     before = _blas_threads_now()
     with threads.limit_blas(threads.PARALLEL_FLOPS / 10):
@@ -392,7 +394,7 @@ def test_limit_blas_small_work_runs_on_one_thread(monkeypatch):
 
 
 def test_idle_cores_counts_other_processes_only():
-    from sk_hamiltonian._kernels import threads
+    from sk_hamiltonian import _threads as threads
 
     idle = threads.idle_cores()
     # This process's own running threads (the test's) are not "others".
@@ -445,7 +447,7 @@ def _sparse_model():
 def test_one_call_prediction_is_the_compiled_field(name, n_samples, monkeypatch):
     # predict of a few states takes the one-call kernel, whose field is the
     # same compiled code as the general compiled path's: equal to the bit.
-    from sk_hamiltonian import _kernels
+    from sk_hamiltonian._space import compiled
 
     model = _sparse_model() if name == "sparse" else _fitted(**MODELS[name])
     if name == "sparse":
@@ -455,7 +457,7 @@ def test_one_call_prediction_is_the_compiled_field(name, n_samples, monkeypatch)
     calls = _checked_calls(monkeypatch)
     with config_context(kernels="numba"):
         got = model.predict(X)
-        general = _kernels.field(model._eval_space, X, model._eval_coef, model.damping_)
+        general = compiled.field(model._eval_space, X, model._eval_coef, model.damping_)
     with config_context(kernels="numpy"):
         expected = model.predict(X)
     assert len(calls) == 1  # packed at the first call, then computed
@@ -518,10 +520,10 @@ def test_one_call_prediction_sees_coefficients_changed_in_place(monkeypatch):
     # at every call); the unpickled model packs its own.
     assert len(calls) == 1 + 2 + 1 + 2 + 1 + 1
     assert not np.allclose(results[0], results[1]) and not np.allclose(results[1], results[2])
-    from sk_hamiltonian import _kernels
+    from sk_hamiltonian._space import compiled
 
     with config_context(kernels="numba"):
-        general = _kernels.field(model._eval_space, X, model._eval_coef, model.damping_)
+        general = compiled.field(model._eval_space, X, model._eval_coef, model.damping_)
     with config_context(kernels="numpy"):
         expected = model.predict(X)
     assert np.isnan(expected).any()

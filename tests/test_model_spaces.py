@@ -17,7 +17,7 @@ from sk_hamiltonian import (
     VectorFieldRegressor,
     config_context,
 )
-from sk_hamiltonian._kernels import numba_available
+from sk_hamiltonian._numba import numba_available
 from sk_hamiltonian.datasets import double_pendulum, fput_chain, henon_heiles, make_trajectories
 from sk_hamiltonian.inspection import hamiltonian_terms
 from sk_hamiltonian.model_selection import count_terms

@@ -17,9 +17,10 @@ from scipy import linalg
 from sklearn.exceptions import ConvergenceWarning
 
 from sk_hamiltonian import DerivativeTransformer, HamiltonianRegressor
+from sk_hamiltonian import _fit_steps as steps
+from sk_hamiltonian import _threads as threads
 from sk_hamiltonian._design import quadrature_nodes
 from sk_hamiltonian._design_operator import DesignOperator
-from sk_hamiltonian._kernels import threads
 from sk_hamiltonian._sketch import DesignSketch
 from sk_hamiltonian.datasets import henon_heiles, make_trajectories
 
@@ -126,8 +127,7 @@ def test_operator_passes_agree_on_one_thread_and_on_several(monkeypatch):
     Xt = DerivativeTransformer(dt=DT, method="finite_difference").fit_transform(X)
     model = HamiltonianRegressor(degree=4)
     data = model._training_data(Xt, None, None)
-    model._set_up_space(data)
-    space = model._space
+    space = steps.build_space(model, data)
     operator = DesignOperator(space, data, "derivatives", quadrature_nodes(space), "gradient")
     monkeypatch.setattr("sk_hamiltonian._design_operator.CHUNK_SAMPLES", 128)
     x = np.random.default_rng(0).normal(size=(space.n_terms, 1))

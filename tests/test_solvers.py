@@ -18,9 +18,16 @@ from sk_hamiltonian import (
     IllConditionedWarning,
     VectorFieldRegressor,
 )
-from sk_hamiltonian import _solvers
+from sk_hamiltonian import _fit_steps as steps
 from sk_hamiltonian._design import column_groups, hamiltonian_blocks
-from sk_hamiltonian._solvers import NormalEquations, choose_solver, normal_equations
+from sk_hamiltonian._solvers import (
+    NormalEquations,
+    choice,
+    choose_solver,
+    iterative,
+    normal,
+    normal_equations,
+)
 from sk_hamiltonian.datasets import henon_heiles, make_trajectories
 
 DT = 0.01
@@ -92,7 +99,7 @@ def test_iterative_on_a_periodic_space_with_samples_over_the_box(Model):
 
 def test_normal_condition_estimate_beyond_the_exact_size(layout, monkeypatch):
     reference = HamiltonianRegressor(degree=4, solver="normal").fit(layout)
-    monkeypatch.setattr(_solvers, "EXACT_COND_MAX", 0)
+    monkeypatch.setattr(normal, "EXACT_COND_MAX", 0)
     estimated = HamiltonianRegressor(degree=4, solver="normal").fit(layout)
     assert np.array_equal(estimated.coef_, reference.coef_)
     # Power and inverse iteration approach the extreme eigenvalues from inside.
@@ -109,8 +116,8 @@ def test_refinement_against_the_design_improves_an_inaccurate_cholesky(layout):
     assert reference.cond_ > 500
     assert relative(model.coef_, reference.coef_) < 1e-12
     data = model._training_data(layout, None, None)
-    gram, rhs = model._accumulate(data).result()
-    unrefined, _, _ = _solvers.solve_normal(gram, rhs)
+    gram, rhs, _ = steps.normal_equations(model, model._space, data)
+    unrefined, _, _ = normal.solve_normal(gram, rhs)
     assert relative(unrefined, reference.coef_) > 10 * relative(model.coef_, reference.coef_)
 
 
@@ -139,8 +146,7 @@ def test_rank_deficient_fit_is_near_the_minimum_norm_solution(solver, tolerance)
 def test_grouped_accumulation_equals_the_dense_normal_equations(layout):
     model = HamiltonianRegressor(degree=4, damping=True)
     data = model._training_data(layout, None, None)
-    model._set_up_space(data)
-    space = model._space
+    space = steps.build_space(model, data)
     dense = normal_equations(hamiltonian_blocks(space, data, "derivatives", 2, True), space.n_terms + 2)
     accumulator = NormalEquations(space.n_terms + 2, column_groups(space, True))
     grouped = accumulator.add_blocks(
@@ -180,31 +186,31 @@ def test_grouped_scatter_equals_the_dense_gram_across_tiles(n_columns):
 def test_choose_solver_by_size():
     assert choose_solver("auto", 1000, 100) == "lstsq"
     assert choose_solver("auto", 10**6, 1000) == "normal"
-    n = _solvers.SKETCH_MIN_TERMS
-    assert choose_solver("auto", _solvers.SKETCH_MIN_ROWS_PER_TERM * n, n) == "sketch"
+    n = choice.SKETCH_MIN_TERMS
+    assert choose_solver("auto", choice.SKETCH_MIN_ROWS_PER_TERM * n, n) == "sketch"
     # Factored normal equations beat the sketch (55 s against 165 s at n = 16).
-    assert choose_solver("auto", _solvers.SKETCH_MIN_ROWS_PER_TERM * n, n, factored=True) == "normal"
+    assert choose_solver("auto", choice.SKETCH_MIN_ROWS_PER_TERM * n, n, factored=True) == "normal"
     asked = []
     assert choose_solver("auto", 10**6, 1000, factored=lambda: asked.append(1)) == "normal"
     assert not asked  # only asked where the choice depends on it
-    assert choose_solver("auto", _solvers.SKETCH_MIN_ROWS_PER_TERM * n - 1, n) == "normal"
+    assert choose_solver("auto", choice.SKETCH_MIN_ROWS_PER_TERM * n - 1, n) == "normal"
     assert choose_solver("auto", 10**7, n - 1) == "normal"
-    assert choose_solver("auto", 10**7, _solvers.ITERATIVE_MIN_TERMS) == "iterative"
+    assert choose_solver("auto", 10**7, choice.ITERATIVE_MIN_TERMS) == "iterative"
     assert choose_solver("normal", 10, 10) == "normal"
 
 
 def test_iterative_warns_when_it_stops_early_and_auto_falls_back(layout, monkeypatch):
     reference = HamiltonianRegressor(degree=4, solver="lstsq").fit(layout)
-    monkeypatch.setattr(_solvers, "CG_MAX_ITER", 3)
-    monkeypatch.setattr(_solvers.solve_iterative, "__defaults__", (None, 1e-11, 3, None))
+    monkeypatch.setattr(iterative, "CG_MAX_ITER", 3)
+    monkeypatch.setattr(iterative.solve_iterative, "__defaults__", (None, 1e-11, 3, None))
     with pytest.warns(ConvergenceWarning, match="solver='normal'"):
         HamiltonianRegressor(degree=4, solver="iterative").fit(layout)
     with pytest.warns(ConvergenceWarning, match="solver='sketch' .*ill-conditioned"):
         HamiltonianRegressor(degree=4, solver="sketch").fit(layout)
     # "auto" picks conjugate gradients for large problems, and falls back to
     # the normal equations when they stall.
-    monkeypatch.setattr(_solvers, "DENSE_MAX_ENTRIES", 0)
-    monkeypatch.setattr(_solvers, "ITERATIVE_MIN_TERMS", 1)
+    monkeypatch.setattr(choice, "DENSE_MAX_ENTRIES", 0)
+    monkeypatch.setattr(choice, "ITERATIVE_MIN_TERMS", 1)
     with warnings.catch_warnings():
         warnings.simplefilter("error", ConvergenceWarning)
         model = HamiltonianRegressor(degree=4).fit(layout)

@@ -13,6 +13,7 @@ from sk_hamiltonian import DerivativeTransformer, HamiltonianRegressor, VectorFi
 from sk_hamiltonian import _least_squares
 from sk_hamiltonian._space import ModelSpace, index_set
 from sk_hamiltonian._space.readable import ReadableBasis
+from sk_hamiltonian.model_selection._threshold_path import fit_along_path
 from sk_hamiltonian.datasets import henon_heiles, make_trajectories, single_pendulum
 from sk_hamiltonian.inspection import hamiltonian_terms
 
@@ -323,7 +324,7 @@ def test_one_assembly_path_equals_separate_fits(noisy_pendulum, cls, solver):
     _, Xt = noisy_pendulum
     estimator = cls(degree=6, solver=solver, **PENDULUM_SPACE)
     thresholds = [0.0, 1e-3, 0.03]
-    models = clone(estimator)._fit_threshold_path(Xt, thresholds)
+    models = fit_along_path(clone(estimator), Xt, thresholds)
     for threshold, model in zip(thresholds, models):
         alone = clone(estimator).set_params(threshold=threshold).fit(Xt)
         assert model.threshold == threshold

@@ -4,20 +4,7 @@ import numpy as np
 
 from .._space.fourier import MIN_SEGMENT_NODES, phase_nodes
 from .._space.legendre import gauss_on_unit
-from .base import FixedStepIntegrator, apply_inverse_symplectic
-
-
-def apply_structure(g, damping=None):
-    """``(J^{-1} - Gamma) g``: Hamilton's equations with linear damping, row by row.
-
-    The momentum rows get ``-dH/dq - gamma * dH/dp``, the position rows
-    ``dH/dp``. Without damping this is :func:`apply_inverse_symplectic`.
-    """
-    out = apply_inverse_symplectic(g)
-    if damping is not None:
-        d = g.shape[-1] // 2
-        out[..., :d] -= damping * g[..., :d]
-    return out
+from .base import FixedStepIntegrator
 
 
 class AveragedVectorField(FixedStepIntegrator):

@@ -56,10 +56,10 @@ def _floats3(ints, floats, k):
 
 @njit(cache=True, nogil=True, inline="always")
 def unpack(ints, floats):
-    """The views of the items :func:`sk_hamiltonian._kernels.checked_field` packs, in its order.
+    """The views of the items :func:`sk_hamiltonian._space.compiled.checked_field` packs, in its order.
 
     Returns ``(tree, C, flat, snapshot)``: the tree and flat tuples of
-    :func:`sk_hamiltonian._kernels.bound_kernels`, the bound coefficients
+    :func:`sk_hamiltonian._space.compiled.bound_kernels`, the bound coefficients
     and the coefficients they were bound from. The items are, in order, the
     15 of the tree (0 to 14, the width a plain integer), the bound
     coefficients (15), the 10 of the flat tuple (16 to 25, its flags as

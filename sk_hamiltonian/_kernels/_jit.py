@@ -10,14 +10,14 @@ the variables summed so far and (order 2) their second derivatives. Each
 sum over a column runs over the nodes that have it (``column_counts``),
 never over the zeros of the dense arrays.
 
-A *tree* is the tuple built by :func:`.tree.tree_arrays`::
+A *tree* is the tuple built by :func:`sk_hamiltonian._space.kernel_tree.tree_arrays`::
 
     (family, degree, slope, offset, leaf_start, leaf_column, level_start,
      level_parent, level_key, node_counts, width, level_pos, column_counts,
      trig_degree, trig_rate)
 
 and the coefficients are bound to it as a dense ``(width, K, n_prefixes)``
-array (:func:`sk_hamiltonian._kernels.bound_kernels`). The carried derivatives
+array (:func:`sk_hamiltonian._space.compiled.bound_kernels`). The carried derivatives
 of the nodes of a level are ``P = 1 + m + m * m`` rows of nodes: the value,
 ``d/dx_i`` at ``1 + i`` and ``d2/dx_i dx_j`` (``i <= j``) at ``1 + m + i * m
 + j``.
@@ -195,7 +195,7 @@ def flat_contract(T, keys, rows, W, root):
 def contract_root(x, tree, C, flat, order, T, cur, nxt, pad):
     """Tables at the state ``x``, then the root's results by the flat or the tree contraction.
 
-    ``flat`` is the last item of :func:`sk_hamiltonian._kernels.bound_kernels`:
+    ``flat`` is the last item of :func:`sk_hamiltonian._space.compiled.bound_kernels`:
     ``(use, keys0, rows0, W0, keys1, rows1, W1, keys2, rows2, W2)``,
     ``use[order]`` saying whether order ``order`` contracts flat (into the
     work array ``cur``, as the tree does).

@@ -16,7 +16,7 @@ are on the scaling page of the docs):
   stayed scalar);
 - the lane count is a run-time value (a compile-time one was unrolled into
   scalar code);
-- it is a multiple of 8 (:func:`sk_hamiltonian._kernels._lanes`).
+- it is a multiple of 8 (:func:`sk_hamiltonian._kernels.lanes`).
 
 Results are the value and the gradient (``R = 1`` or ``2`` table rows) of a
 scalar ``sum_j coef[j] phi_j``: what ``predict``, ``hamiltonian`` and
@@ -24,8 +24,8 @@ scalar ``sum_j coef[j] phi_j``: what ``predict``, ``hamiltonian`` and
 states. The Hessian, several targets, small batches and the other
 integrators stay with :mod:`._jit` and :mod:`._simulate_jit`.
 
-A *tree* is the tuple of :func:`.tree.tree_arrays`; *children* the tuple of
-:func:`.tree.children_by_parent`; ``leaf_coef`` the coefficients in the
+A *tree* is the tuple of :func:`sk_hamiltonian._space.kernel_tree.tree_arrays`; *children* the tuple of
+:func:`sk_hamiltonian._space.kernel_tree.children_by_parent`; ``leaf_coef`` the coefficients in the
 tree's leaf order.
 """
 

@@ -7,7 +7,7 @@ field with its simplified Newton iteration, leapfrog and its compositions),
 the same failure rule (a state non-finite at an output time freezes the
 trajectory there) and the same wrapping of periodic variables at output
 times. The integrators of :mod:`sk_hamiltonian._integrate` stay the
-reference; :mod:`.simulate` decides when this path applies.
+reference; :mod:`sk_hamiltonian._integrate.compiled` decides when this path applies.
 
 Model kinds: 0, a Hamiltonian ``f = (J^{-1} - Gamma) grad H`` (``tree`` and
 ``C`` describe ``H``); 1, a vector field ``f_c = sum_j C[j, c] phi_j``.

@@ -12,9 +12,8 @@ import math
 
 import numpy as np
 
-from .. import _kernels
 from .._config import use_numba
-from . import tensor
+from . import compiled, tensor
 from .contraction import ContractionPlan
 from .derivative_maps import DerivativeMaps
 from .flat import FlatPlan, choose_flat
@@ -347,8 +346,8 @@ class ModelSpace:
         tensor.gradient_rows(self.factor_tables(X, 1), self.layout, rows, outs)
 
     def _compiled(self, X, coef, order):
-        """:func:`sk_hamiltonian._kernels.contract` shaped as the numpy path's results."""
-        value, grad, hess = _kernels.contract(self, X, coef, order)
+        """:func:`.compiled.contract` shaped as the numpy path's results."""
+        value, grad, hess = compiled.contract(self, X, coef, order)
         result = (value, grad, hess)[order]
         return result[..., 0] if np.ndim(coef) == 1 else result
 

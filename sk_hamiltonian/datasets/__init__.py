@@ -1,20 +1,10 @@
 """Known Hamiltonian systems (the paper's examples and beyond) and trajectory data."""
 
-from ._systems import (
-    PAPER_DT,
-    SCENES,
-    SYSTEMS,
-    HamiltonianSystem,
-    cherry,
-    damped_pendulum,
-    double_pendulum,
-    exponential,
-    fput_chain,
-    henon_heiles,
-    load_system,
-    single_pendulum,
-    toda_lattice,
-)
+from ._chains import fput_chain, toda_lattice
+from ._paper import PAPER_DT, cherry, double_pendulum, exponential, henon_heiles, single_pendulum
+from ._pendula import damped_pendulum
+from ._system import HamiltonianSystem
+from ._systems import SCENES, SYSTEMS, load_system
 from ._trajectories import make_trajectories
 
 __all__ = [

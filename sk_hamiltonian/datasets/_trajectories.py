@@ -6,7 +6,8 @@ import numbers
 import numpy as np
 from sklearn.utils import check_random_state
 
-from ._systems import HamiltonianSystem, load_system
+from ._system import HamiltonianSystem
+from ._systems import load_system
 
 
 def _check_int(value, name, minimum):

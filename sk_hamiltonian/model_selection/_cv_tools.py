@@ -6,9 +6,9 @@ import numpy as np
 from sklearn.base import clone
 from sklearn.pipeline import Pipeline
 
-from .._base import BaseTrajectoryRegressor, is_trajectory_container
+from .._base import BaseTrajectoryRegressor
 from .._scoring import multistep_errors
-from .._trajectories import check_trajectories
+from .._trajectories import check_trajectories, is_trajectory_container
 from .._vector_field import VectorFieldRegressor
 
 

@@ -142,8 +142,10 @@ class HamiltonianSearchCV(BaseEstimator):
         ``"best_score"``: the best mean score. ``"simplest"``: among the
         finalists within one paired standard error of the best mean score
         (which the data cannot tell from it), the fewest terms, then the
-        least biased fit target (Simpson, then steps, then derivatives), then
-        the best mean score.
+        smoothest derivative layout (the lowest de-noising degree; noise left
+        in the states biases the coefficients toward zero), then the least
+        biased fit target (Simpson, then steps, then derivatives), then the
+        best mean score.
     cv : int, cross-validation generator or iterable, default=5
         Folds of whole trajectories, as in
         :class:`~sklearn.model_selection.GridSearchCV`.
@@ -311,6 +313,7 @@ class HamiltonianSearchCV(BaseEstimator):
         scores = np.array([records[i]["scores"] for i in finalists])
         choice, tied = pick_among(
             scores, [records[i]["n_terms"] for i in finalists],
+            [_smoothing(records[i]["denoise"]) for i in finalists],
             [records[i]["fit_on"] for i in finalists], self.selection,
         )
         if choice is None:
@@ -455,6 +458,11 @@ def _transformer_params(denoise):
 
 def _describe_layout(denoise):
     return "finite differences" if denoise == "finite_difference" else f"Q={denoise}"
+
+
+def _smoothing(denoise):
+    """Order of layouts from the smoothest: the de-noising degree, finite differences last."""
+    return np.inf if denoise == "finite_difference" else float(denoise)
 
 
 def _reference(denoise):

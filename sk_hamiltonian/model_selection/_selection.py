@@ -1,18 +1,29 @@
-"""How the search chooses: ties by paired standard errors, then simplicity.
+"""How the search chooses: ties within standard errors, then simplicity.
 
 Two choices, both from fold-by-fold scores of candidates on the same folds:
 
 - :func:`pick_within` chooses among candidates that share a derivative layout
-  and a fit target, by their held-out *equation error* (lower is better):
-  the candidates whose mean error is within one paired standard error of the
-  best tie with it, and the one with the fewest terms wins (then the lower
-  mean error);
+  and a fit target, by their held-out *equation error* (lower is better),
+  with the one-standard-error rule: the candidates whose mean error is
+  within one standard error of the best candidate's fold errors tie with
+  it, and the one with the fewest terms wins (then the smaller space, then
+  the lower mean error);
 - :func:`pick_among` chooses among those winners by the rollout *score*
-  (higher is better), with the rule of the search's ``selection``.
+  (higher is better), with the rule of the search's ``selection``. Its ties
+  are *paired*: two candidates are compared fold by fold, so that what every
+  candidate shares on a fold (how noisy its held-out trajectories are)
+  cancels. Unpaired, every finalist of the paper's noisy pendulum ties with
+  every other (fold-score standard errors of 6e-5); paired, over-smoothing
+  (a de-noising degree 2) and noisy derivatives (degree 8) fall 2 to 7
+  standard errors behind, while the models that differ only over tens of
+  seconds still tie.
 
-A *paired* standard error compares two candidates fold by fold: what every
-candidate shares on a fold (how noisy its held-out trajectories are) cancels,
-so the band shows the difference the data can resolve.
+Among tied finalists the ``"simplest"`` rule prefers, in this order, fewer
+terms; the smoothest derivative layout (the lowest de-noising degree, finite
+differences last): the fit's regressors are the layout's states, and noise
+left in them biases the coefficients toward zero (errors in variables), so
+of two layouts the data cannot tell apart the smoother one is less biased;
+the least biased fit target (:data:`FIT_ON_ORDER`); the best mean score.
 """
 
 import numpy as np
@@ -65,6 +76,31 @@ def _best(means, higher_is_better):
     return int(np.argmax(values) if higher_is_better else np.argmin(values))
 
 
+def one_se_ties(scores, best, higher_is_better):
+    """Rows within one standard error of the best row's fold scores (the classical rule).
+
+    Parameters
+    ----------
+    scores : ndarray of shape (n_candidates, n_folds)
+        Fold scores; rows with a non-finite entry never tie.
+    best : int
+        Row of the best candidate.
+    higher_is_better : bool
+        Direction of the score.
+
+    Returns
+    -------
+    tied : ndarray of shape (n_candidates,) of bool
+    """
+    scores = np.asarray(scores, dtype=float)
+    finite = np.isfinite(scores).all(axis=1)
+    sign = 1.0 if higher_is_better else -1.0
+    se = scores[best].std() / np.sqrt(scores.shape[1])
+    with np.errstate(invalid="ignore"):
+        tied = finite & (sign * scores.mean(axis=1) >= sign * scores[best].mean() - se)
+    return tied
+
+
 def pick_within(errors, n_terms, space_sizes=None):
     """The fewest terms among the candidates tied with the lowest mean equation error.
 
@@ -89,14 +125,14 @@ def pick_within(errors, n_terms, space_sizes=None):
     best = _best(np.where(np.isfinite(errors).all(axis=1), errors.mean(axis=1), np.nan), False)
     if best is None:
         return None, np.zeros(errors.shape[0], dtype=bool)
-    tied = paired_ties(errors, best, higher_is_better=False)
+    tied = one_se_ties(errors, best, higher_is_better=False)
     rows = np.flatnonzero(tied)
     sizes = np.zeros(errors.shape[0]) if space_sizes is None else np.asarray(space_sizes)
     order = np.lexsort((errors[rows].mean(axis=1), sizes[rows], np.asarray(n_terms)[rows]))
     return int(rows[order[0]]), tied
 
 
-def pick_among(scores, n_terms, fit_on, selection="simplest"):
+def pick_among(scores, n_terms, smoothing, fit_on, selection="simplest"):
     """The final choice among the finalists' rollout scores.
 
     Parameters
@@ -105,13 +141,16 @@ def pick_among(scores, n_terms, fit_on, selection="simplest"):
         Rollout scores (higher is better).
     n_terms : ndarray of shape (n_finalists,)
         Their sizes.
+    smoothing : ndarray of shape (n_finalists,)
+        Their de-noising degrees, ``inf`` for finite differences (lower is
+        smoother).
     fit_on : sequence of str
         Their fit targets.
     selection : {"simplest", "best_score"}, default="simplest"
         ``"best_score"``: the best mean score. ``"simplest"``: among the
         finalists within one paired standard error of the best mean score,
-        the fewest terms, then the least biased fit target
-        (:data:`FIT_ON_ORDER`), then the best mean score.
+        the fewest terms, then the smoothest layout, then the least biased
+        fit target (:data:`FIT_ON_ORDER`), then the best mean score.
 
     Returns
     -------
@@ -129,5 +168,6 @@ def pick_among(scores, n_terms, fit_on, selection="simplest"):
         return best, tied
     rows = np.flatnonzero(tied)
     rank = np.array([FIT_ON_ORDER.index(fit_on[r]) for r in rows])
-    order = np.lexsort((-means[rows], rank, np.asarray(n_terms)[rows]))
+    order = np.lexsort((-means[rows], rank, np.asarray(smoothing, dtype=float)[rows],
+                        np.asarray(n_terms)[rows]))
     return int(rows[order[0]]), tied

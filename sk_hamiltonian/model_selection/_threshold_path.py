@@ -1,5 +1,6 @@
 """The threshold path: model size against cross-validated score, over sparsity thresholds."""
 
+import copy
 import warnings
 
 import numpy as np
@@ -12,8 +13,10 @@ from sklearn.pipeline import Pipeline
 from sklearn.utils import Bunch, _safe_indexing, indexable
 from sklearn.utils.parallel import Parallel, delayed
 
+from .. import _fit_steps as steps
 from .._base import BaseTrajectoryRegressor
-from .._least_squares import CGNotConverged
+from .._least_squares import CGNotConverged, solve_path
+from .._threads import gram_flops, limit_blas
 
 
 def _threshold_parameter(estimator):
@@ -158,7 +161,7 @@ def _fit_path(estimator, X, values):
         if step is not None and step != "passthrough":
             Xt = step.fit_transform(Xt)
     try:
-        models = final._fit_threshold_path(Xt, values)
+        models = fit_along_path(final, Xt, values)
     except (CGNotConverged, TypeError, ValueError):
         # Dask arrays, 2-D input without y, or an iterative solve that did
         # not converge: separate fits give the same models (or the error).
@@ -166,6 +169,51 @@ def _fit_path(estimator, X, values):
     if not steps:
         return models
     return [Pipeline(steps + [(estimator.steps[-1][0], model)]) for model in models]
+
+
+def fit_along_path(regressor, X, thresholds):
+    """Fitted copies of ``regressor``, one per threshold, from one assembly.
+
+    Each equals ``clone(regressor).set_params(threshold=t).fit(X)`` up to
+    round-off, but the model space and the design (and with
+    ``solver="normal"`` its Gram matrix) are built once: a new support needs
+    only a smaller solve. In-memory data only; the caller falls back to
+    separate fits for dask arrays and when conjugate gradients do not
+    converge.
+
+    Parameters
+    ----------
+    regressor : HamiltonianRegressor or VectorFieldRegressor
+        The model; its ``threshold`` is ignored.
+    X : derivative layout or array-like of shape (n_samples, n_states)
+        What its ``fit`` takes (2-D states need ``y``, which this path does
+        not take: pass the derivative layout).
+    thresholds : sequence of float
+        Non-negative thresholds.
+
+    Returns
+    -------
+    models : list of estimators
+        Fitted, in the order of ``thresholds``.
+    """
+    regressor._validate_params()
+    regressor._check_integer_params()
+    regressor._partial = None
+    data = regressor._training_data(X, None, None)
+    space = steps.build_space(regressor, data)
+    design = regressor._design(space)
+    solver = steps.choose(regressor, design, data)
+    rules = [steps.support_rule(regressor, space, float(t)) for t in thresholds]
+    models = []
+    with limit_blas(gram_flops(design.n_rows(data), design.n_columns)):
+        solutions = solve_path(design.problem(data), solver, rules,
+                               fall_back=regressor.solver == "auto",
+                               name=type(regressor).__name__)
+        for threshold, solution in zip(thresholds, solutions):
+            model = copy.copy(regressor)
+            model.threshold = float(threshold)
+            models.append(steps.set_fitted(model, space, solution, data, solver=solver))
+    return models
 
 
 def _fold_scores(estimator, X, train, test, values, scorer):

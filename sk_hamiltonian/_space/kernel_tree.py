@@ -1,6 +1,6 @@
 """The arrays a compiled kernel needs from a model space (plain numpy, no numba).
 
-A model space's index set becomes a prefix tree (:mod:`sk_hamiltonian._space.trie`):
+A model space's index set becomes a prefix tree (:mod:`.trie`):
 the functions grouped by their first ``m - 1`` columns (the leaves, in
 compressed-row form: each prefix's functions and the column of their last
 variable), then one level per variable with each node's parent and column.
@@ -21,14 +21,14 @@ of a degree-15 space in four variables are 3.4 times its 3 876 terms).
 
 import numpy as np
 
-from .._space.tables import _legendre, _mixed
-from .._space.trie import Level, prefix_ids
+from .tables import _legendre, _mixed
+from .trie import Level, prefix_ids
 
 INDEX = np.int64
 
 
 def tree_arrays(space):
-    """The tuple of arrays describing ``space`` to :mod:`._jit`, and the leaf order of its terms.
+    """The tuple of arrays describing ``space`` to :mod:`sk_hamiltonian._kernels._jit`, and the leaf order of its terms.
 
     Returns
     -------
@@ -110,7 +110,7 @@ def _by_largest_child(ids, child_keys):
 
 
 def children_by_parent(tree):
-    """Each level's nodes grouped by parent, for the kernels of :mod:`._lanes_jit`.
+    """Each level's nodes grouped by parent, for the kernels of :mod:`sk_hamiltonian._kernels._lanes_jit`.
 
     Returns
     -------

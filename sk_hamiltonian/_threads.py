@@ -1,4 +1,4 @@
-"""BLAS threads chosen by problem size (threadpoolctl, which comes with scikit-learn).
+"""Threads: the BLAS's chosen by problem size, and the package's own pool.
 
 A multi-threaded BLAS pays for its threads on large products only. On small
 ones the start-up costs more than it saves, and on a busy machine a second
@@ -40,12 +40,20 @@ work below :data:`PARALLEL_FLOPS` on one BLAS thread, work up to
 (:func:`idle_cores`), and leaves larger work to the BLAS as the user
 configured it (all cores by default). A BLAS may sum in another order on
 another number of threads, so a fit on an idle machine and the same fit on a
-busy one agree to round-off, not bit for bit.
+busy one agree to round-off, not bit for bit. The BLAS's threads are set
+with threadpoolctl, which comes with scikit-learn.
+
+The package's own pool (:func:`thread_pool`) runs independent pieces of
+work that release the GIL: passes of the design operator over chunks of
+samples (:func:`map_on_idle_cores`) and the compiled kernels over slices of
+states (:func:`in_threads`).
 """
 
 import os
 import threading
 from contextlib import nullcontext
+
+import numpy as np
 
 # Multiply-adds below which a BLAS call or a whole fit runs on one thread
 # unless a core is idle (the tables above). A Gram update of n_rows x n_columns
@@ -190,3 +198,27 @@ def map_on_idle_cores(function, items):
     with limit_blas(0):
         results = list(thread_pool().map(run, zip(bounds[:-1], bounds[1:])))
     return [result for part in results for result in part]
+
+
+def in_threads(part, n, minimum):
+    """``part(rows)`` over ``n`` rows: in one slice, or one slice per core from ``minimum`` rows.
+
+    The compiled kernels release the GIL, so threads run them in parallel
+    (no numba threading layer: nothing to go wrong in forked workers). At
+    most ``numba.get_num_threads()`` threads.
+    """
+    if n < 2 * minimum:  # one slice, whatever the thread count
+        part(slice(0, n))
+        return
+    import numba
+
+    # numba's thread count (NUMBA_NUM_THREADS, numba.set_num_threads), all
+    # cores by default, is the knob users of numba know.
+    n_threads = min(numba.get_num_threads(), n // max(1, minimum))
+    if n_threads <= 1:
+        part(slice(0, n))
+        return
+    bounds = np.linspace(0, n, n_threads + 1).astype(int)
+    futures = [thread_pool().submit(part, slice(a, b)) for a, b in zip(bounds[:-1], bounds[1:])]
+    for future in futures:
+        future.result()

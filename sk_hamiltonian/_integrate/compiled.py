@@ -4,17 +4,26 @@ A model that can be simulated by the compiled path says so with a
 :class:`KernelModel` in its :class:`~sk_hamiltonian._integrate.Dynamics`
 (``Dynamics.compiled``); :func:`sk_hamiltonian._integrate.integrate` then
 hands the whole run to :func:`integrate_compiled` when the kernels switch
-allows numba and the integrator is one of the four known methods.
+allows numba and the integrator is one of the four known methods. The model
+space becomes the kernels' arrays here (:mod:`sk_hamiltonian._space.compiled`);
+the kernels themselves (:mod:`sk_hamiltonian._kernels`) only see arrays.
 """
 
 import math
 
 import numpy as np
 
+from .. import _kernels
+from .._space.compiled import bound_kernels, in_lanes, lane_kernels
 from .._space.fourier import MIN_SEGMENT_NODES, PHASE_LIMITS
-from . import PARALLEL_ROWS, _in_lanes, _lane_kernels, _lanes, bound_kernels, in_threads
+from .._threads import in_threads
+from .avf import AveragedVectorField
+from .rk4 import RK4
+from .symplectic import Leapfrog, Yoshida4
 
-METHOD_CODES = {"rk4": 0, "avf": 1, "leapfrog": 2, "yoshida4": 2}
+# The methods the compiled loop knows, by class: a subclass (or someone
+# else's method of the same name) takes its own steps.
+METHOD_CODES = {RK4: 0, AveragedVectorField: 1, Leapfrog: 2, Yoshida4: 2}
 
 
 class KernelModel:
@@ -47,15 +56,13 @@ class KernelModel:
 
 def integrate_compiled(integrator, y0, t, max_step):
     """:func:`sk_hamiltonian._integrate.integrate` in one compiled call, or None where it does not apply."""
-    from .._integrate import METHODS
-
     model = integrator.dynamics.compiled
-    code = METHOD_CODES.get(integrator.name)
-    if code is None or type(integrator) is not METHODS.get(integrator.name):
+    code = METHOD_CODES.get(type(integrator))
+    if code is None:
         return None  # a subclass, or a method of someone else's: its own steps
     if code == 2 and model.split is None:
         return None
-    from . import _simulate_jit
+    from .._kernels import _simulate_jit
 
     space = model.space
     m = space.n_states
@@ -90,14 +97,14 @@ def integrate_compiled(integrator, y0, t, max_step):
     kind = 0 if model.kind == "gradient" else 1
     n_states = y0.shape[0]
     parts = {}
-    if code == 0 and kind == 0 and _in_lanes(space, model.coef, 1, n_states):
+    if code == 0 and kind == 0 and in_lanes(space, model.coef, 1, n_states):
         # Many states of a Hamiltonian by RK4: in step, sharing each pass of
         # the field (_lanes_jit).
-        _lanes_jit, lane_tree, children, leaf_coef = _lane_kernels(space, model.coef)
+        _lanes_jit, lane_tree, children, leaf_coef = lane_kernels(space, model.coef)
 
         def run(rows, out, failed_at):
             _lanes_jit.rk4(lane_tree, children, leaf_coef, gamma, periodic, low, high,
-                           np.ascontiguousarray(y0[rows]), n_sub, h, _lanes(rows.stop - rows.start),
+                           np.ascontiguousarray(y0[rows]), n_sub, h, _kernels.lanes(rows.stop - rows.start),
                            out, failed_at)
     else:
         def run(rows, out, failed_at):
@@ -116,7 +123,7 @@ def integrate_compiled(integrator, y0, t, max_step):
     # PARALLEL_ROWS evaluations of the field per state and step make a chunk
     # worth a thread).
     n_steps = max(1, int(n_sub.sum()))
-    in_threads(part, n_states, max(1, -(-PARALLEL_ROWS * 64 // n_steps)))
+    in_threads(part, n_states, max(1, -(-_kernels.PARALLEL_ROWS * 64 // n_steps)))
     starts = sorted(parts)
     out = np.concatenate([parts[a][0] for a in starts], axis=1)
     failed_at = np.concatenate([parts[a][1] for a in starts])

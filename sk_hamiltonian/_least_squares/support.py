@@ -1,20 +1,11 @@
-"""The least-squares problem of a fit: its design, the terms kept, and their solve.
+"""Support rules: which terms a fit keeps, and their coefficients.
 
-Every fit of the package is ``min_c ||A c - b||``, possibly over a subspace of
-the coefficients. Three parts, each replaceable on its own:
-
-- :class:`LeastSquaresProblem`, the design of one fit in the forms the
-  solvers take (row blocks, grouped blocks for a sketch, an operator, and
-  its normal equations by the estimator's cheapest route);
-- a *column solver* (:func:`column_solver`, :func:`accumulated_solver`):
-  ``solve(keep, basis=None) -> (u, cond, rank)``, the least-squares solution
-  over the columns of the boolean mask ``keep``, or over the coefficients
-  ``basis @ u`` of those columns; with the normal equations a new support is a
-  smaller solve on the same Gram matrix, not a new assembly;
-- a *support rule* (:func:`fit_support`): every term (``threshold=0``, the
-  paper's dense fit), or sequentially thresholded least squares (STLSQ) in the
-  readable basis, with friction unknowns constrained to be non-negative and
-  never dropped.
+Every term (``threshold=0``, the paper's dense fit), or sequentially
+thresholded least squares (STLSQ) in the readable basis, with friction
+unknowns constrained to be non-negative and never dropped.
+:class:`SupportRule` binds a rule to one model space; given a column solver
+(:mod:`.column_solvers`), or the normal equations themselves
+(:meth:`SupportRule.from_normal_equations`), it returns a :class:`Solution`.
 
 The STLSQ loop, for a threshold ``lambda``, works on the coefficients of the
 *readable* basis (monomials and angles in the user's coordinates, see
@@ -44,221 +35,12 @@ import numpy as np
 from scipy import sparse
 from sklearn.exceptions import ConvergenceWarning
 
-from ._solvers import (
-    solve_dense,
-    solve_iterative,
-    solve_nonnegative_tail,
-    solve_normal,
-    stack_blocks,
-    warn_not_converged,
-)
-from ._sketch import DesignSketch
+from .._solvers import solve_nonnegative_tail
+from .._space.readable import ReadableBasis
+from .column_solvers import accumulated_solver
 
 # Cap on the solves of one thresholded fit (each one shrinks the support).
 STLSQ_MAX_ITER = 25
-
-
-class LeastSquaresProblem:
-    """The design of one fit, in the forms the solvers take.
-
-    Parameters
-    ----------
-    blocks : callable
-        ``blocks(grouped=False)``: an iterable of row blocks ``(A, b)`` of
-        every column, or ``(A, b, group)`` with ``grouped=True`` (see
-        ``groups``).
-    operator : callable
-        ``operator()``: the design as a
-        :class:`~sk_hamiltonian._design_operator.DesignOperator`.
-    normal_equations : callable
-        ``normal_equations(progress=None) -> (A^T A, A^T b)``, by the
-        estimator's cheapest route (grouped blocks, or :mod:`._factored`);
-        ``progress(k, n_rows)`` after each block.
-    n_columns : int
-        Columns of the design (unknowns).
-    n_nonnegative : int, default=0
-        How many of the last unknowns are constrained to be ``>= 0``.
-    groups : list of ndarray of int, default=None
-        The columns of each group of ``blocks(grouped=True)``, as the sketch
-        accumulates them; None: one group of every column.
-    """
-
-    def __init__(self, blocks, operator, normal_equations, n_columns, n_nonnegative=0,
-                 groups=None):
-        self.blocks = blocks
-        self.operator = operator
-        self.normal_equations = normal_equations
-        self.n_columns = n_columns
-        self.n_nonnegative = n_nonnegative
-        self.groups = groups
-
-    def column_norms(self, basis=None):
-        """Norms of the columns of ``A`` (or ``A @ basis``), from one pass over its blocks."""
-        squared = 0.0
-        for A, _ in self.blocks():
-            squared = squared + _squared_norms(A, basis)
-        return np.sqrt(squared)
-
-
-def _squared_norms(A, basis=None):
-    if basis is not None:
-        A = _times(A, basis)
-    return np.einsum("ij,ij->j", A, A)
-
-
-def _times(A, basis):
-    """``A @ basis`` for a dense ``A`` and a sparse ``basis``, in Fortran order."""
-    return np.asfortranarray((basis.T @ A.T).T)
-
-
-class CGNotConverged(Exception):
-    """Conjugate gradients stopped at their cap where a fall-back is allowed."""
-
-
-def column_solver(problem, solver, *, single_solve=False, many_supports=False, fall_back=False,
-                  progress=None, block_progress=None, name="estimator"):
-    """``solve(keep, basis=None)`` and the column norms of a problem, by one solver.
-
-    Parameters
-    ----------
-    problem : LeastSquaresProblem
-        The design.
-    solver : {"lstsq", "normal", "iterative", "sketch"}
-        How to solve (see :mod:`._solvers` and :mod:`._sketch`).
-    single_solve : bool, default=False
-        Whether ``solve`` will be called once only, on all columns: ``"lstsq"``
-        may then factorize the design in place instead of a copy.
-    many_supports : bool, default=False
-        Whether ``solve`` will be called on many column sets (a threshold's
-        support iterations, a threshold path): ``"lstsq"`` then reduces the
-        design once to the triangle of its QR factorization, on which every
-        solve and column norm is as on the design (``||A S u - b|| = ||R S u
-        - Q^T b||`` up to a constant, for any column map ``S``) at the cost
-        of a square system.
-    fall_back : bool, default=False
-        With ``"iterative"`` or ``"sketch"``: raise :class:`CGNotConverged` when conjugate
-        gradients reach their cap (``solver="auto"`` then uses the normal
-        equations), instead of warning.
-    progress : callable, default=None
-        ``progress(iteration, residual)`` for conjugate gradients.
-    block_progress : callable, default=None
-        ``block_progress(k, n_rows)`` after each block of the normal
-        equations.
-    name : str, default="estimator"
-        Named in warnings.
-
-    Returns
-    -------
-    solve : callable
-        ``solve(keep, basis=None) -> (u, cond, rank)``: the columns of
-        ``keep`` only, or the coefficients ``basis @ u`` of those columns
-        (``basis`` sparse, one row per kept column).
-    column_norms : callable
-        ``column_norms(basis=None)``: the norms of the columns of the design,
-        or of the design times ``basis`` (one row per column).
-    """
-    if solver in ("iterative", "sketch"):
-        gram = None
-        if solver == "sketch":
-            gram = DesignSketch(problem.n_columns, problem.groups).add_blocks(
-                problem.blocks(grouped=True)).gram()
-        operator = problem.operator()
-
-        def solve_cg(keep, basis=None):
-            coef, cond, rank, converged = solve_iterative(
-                operator, keep, basis=basis, progress=progress, gram=gram
-            )
-            if not converged and fall_back:
-                raise CGNotConverged
-            if not converged:
-                warn_not_converged(name, solver=solver)
-            return coef, cond, rank
-
-        return solve_cg, problem.column_norms
-    if solver == "lstsq":
-        A, b = stack_blocks(problem.blocks(), problem.n_columns)
-        if many_supports and not single_solve:
-            A, b = _triangle(A, b)
-
-        def solve_svd(keep, basis=None):
-            if single_solve:
-                return solve_dense(A, b)
-            # solve_dense overwrites its design: a Fortran-ordered copy of the
-            # kept columns.
-            kept = A.T[keep].T
-            return solve_dense(kept if basis is None else _times(kept, basis), b)
-
-        return solve_svd, lambda basis=None: np.sqrt(_squared_norms(A, basis))
-    gram, rhs = problem.normal_equations(block_progress)
-    operator = problem.operator()
-
-    def residual(keep):
-        def refine(coef):
-            full = np.zeros((problem.n_columns,) + coef.shape[1:])
-            full[keep] = coef
-            r = operator.targets - operator.matvec(full if full.ndim == 2 else full[:, None])
-            out = operator.rmatvec(r)[keep]
-            return out if coef.ndim == 2 else out[:, 0]
-
-        return refine
-
-    return accumulated_solver(gram, rhs, residual)
-
-
-def _triangle(A, b):
-    """``R`` and ``Q^T b`` from the QR factorization of ``[A | b]``, the design in Fortran order.
-
-    ``b`` lies in the span of ``Q``, so for any ``S`` the residual of ``A S
-    u - b`` has the norm of ``R_A S u - R_b``: least squares on the small
-    triangle gives the same solutions, singular values and rank.
-    """
-    n = A.shape[1]
-    R = np.linalg.qr(np.column_stack([A, b]), mode="r")
-    return np.asfortranarray(R[:, :n]), R[:, n] if b.ndim == 1 else R[:, n:]
-
-
-def accumulated_solver(gram, rhs, residual=None):
-    """``solve(keep, basis=None)`` and the column norms from normal equations.
-
-    Parameters
-    ----------
-    gram, rhs : ndarray
-        ``A^T A`` and ``A^T b``.
-    residual : callable, default=None
-        ``residual(keep)`` returns the refinement callback of
-        :func:`~sk_hamiltonian._solvers.solve_normal` for the kept columns;
-        None: no refinement.
-
-    Returns
-    -------
-    solve, column_norms : callable
-        As in :func:`column_solver`.
-    """
-
-    def solve(keep, basis=None):
-        refine = None if residual is None else residual(keep)
-        if basis is None:
-            if keep.all():
-                return solve_normal(gram, rhs, refine)
-            return solve_normal(gram[np.ix_(keep, keep)], rhs[keep], refine)
-        # The normal equations of A @ basis: basis^T G basis (G symmetric).
-        left = basis.T @ gram[np.ix_(keep, keep)]
-        reduced = basis.T @ left.T
-        if refine is not None:
-            inner = refine
-
-            def refine(u):
-                return basis.T @ inner(basis @ u)
-
-        return solve_normal(reduced, basis.T @ rhs[keep], refine)
-
-    def column_norms(basis=None):
-        if basis is None:
-            return np.sqrt(np.diag(gram))
-        product = (basis.T @ gram).T
-        return np.sqrt(np.asarray(basis.multiply(product).sum(axis=0)).ravel())
-
-    return solve, column_norms
 
 
 class Solution:
@@ -285,6 +67,66 @@ class Solution:
     def __init__(self, coef, support, n_kept, cond, rank, n_solved, n_iter):
         self.coef, self.support, self.n_kept = coef, support, n_kept
         self.cond, self.rank, self.n_solved, self.n_iter = cond, rank, n_solved, n_iter
+
+
+class SupportRule:
+    """The support rule of one fit: its threshold over one model space's columns.
+
+    Parameters
+    ----------
+    space : ModelSpace
+        The basis: the first ``space.n_terms`` columns; its readable form
+        (:class:`~sk_hamiltonian._space.readable.ReadableBasis`) is what the
+        threshold acts on.
+    n_columns : int
+        Unknowns: the basis coefficients, then ``n_nonnegative`` friction
+        coefficients.
+    threshold : float
+        ``lambda`` of the STLSQ loop; 0 keeps every term.
+    n_nonnegative : int, default=0
+        Last unknowns constrained ``>= 0`` (never dropped).
+    name : str, default="estimator"
+        Named in warnings.
+    """
+
+    def __init__(self, space, n_columns, threshold, n_nonnegative=0, name="estimator"):
+        self.space = space
+        self.n_columns = n_columns
+        self.threshold = threshold
+        self.n_nonnegative = n_nonnegative
+        self.name = name
+
+    def __call__(self, solve, column_norms):
+        """The :class:`Solution` of the rule over a column solver (:func:`fit_support`)."""
+        space = self.space
+        return fit_support(
+            solve, column_norms, self.n_columns, n_basis=space.n_terms,
+            threshold=self.threshold, n_nonnegative=self.n_nonnegative,
+            readable=(ReadableBasis(space.powers, space.domain, space.periodic)
+                      if self.threshold else None),
+            name=self.name,
+        )
+
+    def from_normal_equations(self, normal_equations, residual=None):
+        """The :class:`Solution` of the rule solved from ``(A^T A, A^T b[, b^T b])``.
+
+        Parameters
+        ----------
+        normal_equations : tuple
+            ``(gram, rhs)`` or ``(gram, rhs, btb)``, e.g. of
+            :meth:`~.problem.Design.normal_equations`, or a sum of them over
+            pieces of data.
+        residual : callable, default=None
+            ``residual(keep)``: the refinement callback against the design
+            (see :func:`~.column_solvers.accumulated_solver`); None: the
+            Cholesky solution as it is.
+
+        Returns
+        -------
+        solution : Solution
+        """
+        gram, rhs = normal_equations[0], normal_equations[1]
+        return self(*accumulated_solver(gram, rhs, residual))
 
 
 def fit_support(solve, column_norms, n_columns, *, n_basis=None, threshold=0.0,
@@ -361,7 +203,7 @@ class _ReducedSolve:
     friction coefficients; the fitting coefficients are ``to_fitting[:, kept] @
     u``, so only the rows of ``to_fitting`` they touch enter the solve.
     Friction coefficients stay ``>= 0`` by the active set of
-    :func:`~sk_hamiltonian._solvers.solve_nonnegative_tail`.
+    :func:`~sk_hamiltonian._solvers.common.solve_nonnegative_tail`.
     """
 
     def __init__(self, solve, to_fitting, n_basis, n_tail, target=None, cache=None):

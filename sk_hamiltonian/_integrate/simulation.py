@@ -1,0 +1,147 @@
+"""What a fitted model's ``simulate`` delegates: its checks, its defaults and the run.
+
+The regressors' ``simulate`` validates its arguments with the checks here,
+asks for the integrator and step a fit implies (:func:`default_method`,
+:func:`default_step`, from the learned system's time scale
+:func:`time_scale`), and hands the run to :func:`run`.
+"""
+
+from numbers import Real
+
+import numpy as np
+
+from .._threads import limit_blas
+from .driver import integrate, raise_on_failure
+
+# Default integration step as a fraction of the learned system's time scale
+# 1 / rho (rho: spectral radius of its Jacobian over the training states):
+# the global error of RK4 then stays near (0.1)**4 / 120 per unit of rho * t,
+# that of the second-order methods near (0.02)**2 / 12.
+STEP_FRACTION = {"rk4": 0.1, "yoshida4": 0.1, "avf": 0.02, "leapfrog": 0.02}
+# Training states at which the Jacobian is evaluated for the time scale.
+TIME_SCALE_SAMPLES = 256
+
+
+def check_time(t):
+    """Validate output times: 1-D, finite, strictly increasing."""
+    t = np.asarray(t, dtype=float)
+    if t.ndim != 1 or t.size < 1:
+        raise ValueError(f"t must be a non-empty 1-D array of times; got shape {t.shape}.")
+    if not np.isfinite(t).all():
+        raise ValueError("t contains NaN or infinity.")
+    if np.any(np.diff(t) <= 0):
+        raise ValueError("t must be strictly increasing.")
+    return t
+
+
+def check_initial_states(x0, n_features):
+    """``x0`` as a 2-D float array of finite initial states, and whether it was one state."""
+    x0 = np.asarray(x0, dtype=float)
+    single = x0.ndim == 1
+    x0 = np.atleast_2d(x0)
+    if x0.ndim != 2 or x0.shape[1] != n_features:
+        raise ValueError(
+            f"x0 must have shape ({n_features},) or (n_initial, "
+            f"{n_features}); got {np.shape(x0)}."
+        )
+    if not np.isfinite(x0).all():
+        raise ValueError("x0 contains NaN or infinity.")
+    return x0, single
+
+
+def check_max_step(max_step):
+    """Raise unless ``max_step`` is None, positive, or ``numpy.inf``."""
+    if max_step is not None and not (
+        isinstance(max_step, Real) and not isinstance(max_step, bool) and max_step > 0
+    ):
+        raise ValueError(
+            f"max_step must be a positive number, numpy.inf, or None; got {max_step!r}."
+        )
+
+
+def check_on_failure(on_failure):
+    """Raise unless ``on_failure`` is ``"raise"`` or ``"nan"``."""
+    if on_failure not in ("raise", "nan"):
+        raise ValueError(f"on_failure must be 'raise' or 'nan'; got {on_failure!r}.")
+
+
+def default_method(fit_on):
+    """The integrator a model fitted on ``fit_on`` is simulated with by default."""
+    # A fit on steps learns the averaged-vector-field map at the data step.
+    return "avf" if fit_on == "steps" else "rk4"
+
+
+def default_step(method, *, fit_on, dt, time_scale):
+    """The step ``simulate`` takes when ``max_step`` is None.
+
+    The training step ``dt`` for the AVF method of a model fitted on steps
+    (the map it learned), else :data:`STEP_FRACTION` of the learned system's
+    ``time_scale``.
+    """
+    if fit_on == "steps" and method == "avf" and np.isfinite(dt):
+        return dt
+    return STEP_FRACTION[method] * time_scale
+
+
+def time_scale(jacobian, states):
+    """``1 / rho``, rho the 90th percentile of the Jacobian's spectral radius over ``states``.
+
+    Parameters
+    ----------
+    jacobian : callable
+        ``jacobian(X)``: the learned field's Jacobians at the rows of ``X``,
+        or None where the model has none.
+    states : ndarray of shape (n_samples, n_states)
+        Training states; at most about :data:`TIME_SCALE_SAMPLES` of them,
+        evenly strided, are used.
+
+    Returns
+    -------
+    time_scale : float
+        NaN without a Jacobian, infinity for a system that does not move.
+    """
+    J = jacobian(states[:: max(1, states.shape[0] // TIME_SCALE_SAMPLES)])
+    if J is None:
+        return float("nan")
+    J = J[np.isfinite(J).all(axis=(1, 2))]
+    with np.errstate(all="ignore"):
+        radius = np.abs(np.linalg.eigvals(J)).max(axis=1)
+    radius = radius[np.isfinite(radius)]
+    rho = float(np.percentile(radius, 90)) if radius.size else 0.0
+    return 1.0 / rho if rho > 0 else float("inf")
+
+
+def run(integrator, x0, t, max_step, on_failure, what):
+    """Integrate ``x0`` over ``t``: the trajectories, NaN from where each failed.
+
+    Parameters
+    ----------
+    integrator : FixedStepIntegrator
+        The method, bound to the model.
+    x0 : ndarray of shape (n_initial, n_states)
+        Initial states (checked).
+    t : ndarray of shape (n_times,)
+        Output times (checked).
+    max_step : float
+        Largest step.
+    on_failure : {"raise", "nan"}
+        ``"raise"`` a :class:`~sk_hamiltonian.SimulationError` naming
+        ``what`` if a trajectory fails.
+    what : str
+        What is simulated, for the error message.
+
+    Returns
+    -------
+    Y : ndarray of shape (n_initial, n_times, n_states)
+    reached : ndarray of shape (n_initial, n_times) of bool
+        The output times each trajectory reached (False where ``Y`` is NaN).
+    """
+    # Many small products: one BLAS thread.
+    with limit_blas(0):
+        Y, failed_at = integrate(integrator, x0, t, max_step)
+    if on_failure == "raise":
+        raise_on_failure(failed_at, t, what=what)
+    Y = np.swapaxes(Y, 0, 1)
+    reached = np.arange(t.shape[0])[None, :] < failed_at[:, None]
+    Y[~reached] = np.nan
+    return Y, reached

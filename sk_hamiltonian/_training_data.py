@@ -1,0 +1,259 @@
+"""Training data of a fit: validated input, its trajectories, and the quadrature of its rows.
+
+:func:`training_data` validates what a regressor's ``fit`` takes (2-D
+states with derivatives, or the derivative layout of trajectories) into a
+:class:`TrainingData`; :meth:`TrainingData.quadrature` says where each row
+group of a fit evaluates the basis and what it is fitted to (see
+:mod:`sk_hamiltonian._design` for the designs built on it).
+"""
+
+import numpy as np
+from sklearn.utils.validation import _check_sample_weight, validate_data
+
+from ._space.legendre import gauss_on_unit
+from ._trajectories import is_trajectory_container, unpack_derivatives
+
+
+def training_data(estimator, X, y, sample_weight, reset=True):
+    """Validate a regressor's input (``validate_data`` on ``estimator``) and gather what the fit needs.
+
+    Parameters
+    ----------
+    estimator : BaseTrajectoryRegressor
+        The estimator whose ``n_features_in_`` (and feature names) the
+        validation sets (``reset=True``) or checks.
+    X, y, sample_weight
+        As ``fit`` takes them.
+    reset : bool, default=True
+        Whether this is a new fit (see :func:`sklearn.utils.validation.validate_data`).
+
+    Returns
+    -------
+    data : TrainingData
+    """
+    if not is_trajectory_container(X):
+        X, y = validate_data(estimator, X, y, multi_output=True, y_numeric=True, reset=reset)
+        weight = None if sample_weight is None else _check_sample_weight(sample_weight, X)
+        return TrainingData(X, y, weight)
+    if y is not None:
+        raise ValueError(
+            "y must be None when X is trajectory data: the time derivatives "
+            "are part of the DerivativeTransformer output."
+        )
+    layout = unpack_derivatives(X)
+    states, derivatives, times = list(layout.states), list(layout.derivatives), list(layout.times)
+    lengths = [S.shape[0] for S in states]
+    X2, y2 = validate_data(
+        estimator, np.concatenate(states), np.concatenate(derivatives), multi_output=True,
+        y_numeric=True, reset=reset,
+    )
+    trajectory_weight = weight = None
+    if sample_weight is not None:
+        trajectory_weight = np.asarray(sample_weight, dtype=float)
+        if trajectory_weight.shape != (len(states),):
+            raise ValueError(
+                f"sample_weight must have one weight per trajectory, shape "
+                f"({len(states)},), when X is the derivative layout; got shape "
+                f"{trajectory_weight.shape}."
+            )
+        trajectory_weight = _check_sample_weight(trajectory_weight, states)
+        weight = np.repeat(trajectory_weight, lengths)
+    pieces = np.split(X2, np.cumsum(lengths)[:-1])
+    return TrainingData(
+        X2, y2, weight, trajectories=list(zip(times, pieces)),
+        trajectory_weight=trajectory_weight,
+    )
+
+
+class TrainingData:
+    """States, targets and (optionally) steps and weights of one fit.
+
+    Parameters
+    ----------
+    states : ndarray of shape (n_samples, n_states)
+        States the derivative fit evaluates the basis at.
+    derivatives : ndarray of shape (n_samples, n_targets) or None
+        Targets of the derivative fit.
+    sample_weight : ndarray of shape (n_samples,) or None
+        Weights of the states.
+    trajectories : list of (times, states) or None
+        The trajectories the states came from (derivative layout input), for
+        the steps fit and the energy check.
+    trajectory_weight : ndarray of shape (n_trajectories,) or None
+        Weights of the trajectories, applied to their steps.
+    """
+
+    def __init__(self, states, derivatives, sample_weight=None, trajectories=None,
+                 trajectory_weight=None):
+        self.states = states
+        self.derivatives = derivatives
+        self.sample_weight = sample_weight
+        self.trajectories = trajectories
+        self.trajectory_weight = trajectory_weight
+
+    def take_trajectories(self, indices):
+        """The training data of some of the trajectories, in the order of ``indices``.
+
+        What a fit on those trajectories alone would see (e.g. the training
+        folds of a cross-validation): their states, derivatives, weights and
+        steps. Needs trajectories (the derivative layout).
+
+        Parameters
+        ----------
+        indices : array-like of int
+            Trajectory numbers.
+
+        Returns
+        -------
+        data : TrainingData
+        """
+        if self.trajectories is None:
+            raise ValueError(
+                "take_trajectories needs trajectories: these training data are 2-D "
+                "states with derivatives. Build them from the derivative layout."
+            )
+        indices = np.asarray(indices, dtype=np.intp).ravel()
+        lengths = np.array([S.shape[0] for _, S in self.trajectories], dtype=np.intp)
+        starts = np.concatenate([[0], np.cumsum(lengths)[:-1]])
+        rows = np.concatenate(
+            [np.arange(starts[k], starts[k] + lengths[k]) for k in indices]
+        ) if indices.size else np.zeros(0, dtype=np.intp)
+
+        def take(a):
+            return None if a is None else a[rows]
+
+        return TrainingData(
+            self.states[rows], self.derivatives[rows], take(self.sample_weight),
+            trajectories=[self.trajectories[k] for k in indices],
+            trajectory_weight=(None if self.trajectory_weight is None
+                               else self.trajectory_weight[indices]),
+        )
+
+    def median_step(self):
+        """Median sampling step of the trajectories (NaN without them)."""
+        if self.trajectories is None:
+            return float("nan")
+        steps = np.concatenate([np.diff(t) for t, _ in self.trajectories])
+        return float(np.median(steps)) if steps.size else float("nan")
+
+    def steps(self, space):
+        """Observed steps ``(x0, dx, dt, weight)`` of every trajectory.
+
+        ``dx`` takes periodic variables the short way round the circle, so a
+        trajectory given with wrapped angles still has small steps.
+        """
+        if self.trajectories is None:
+            raise ValueError(
+                "fit_on='steps' fits the observed steps of trajectories: pass the "
+                "output of DerivativeTransformer (trajectories with their times), not "
+                "2-D states with derivatives."
+            )
+        starts, moves, dts, weights = [], [], [], []
+        for k, (t, S) in enumerate(self.trajectories):
+            starts.append(S[:-1])
+            moves.append(space.wrap_difference(np.diff(S, axis=0)))
+            dts.append(np.diff(t))
+            w = 1.0 if self.trajectory_weight is None else self.trajectory_weight[k]
+            weights.append(np.full(S.shape[0] - 1, w))
+        x0 = np.concatenate(starts)
+        if x0.shape[0] == 0:
+            raise ValueError(
+                "fit_on='steps' needs trajectories with at least two samples; every "
+                "trajectory here has one."
+            )
+        return x0, np.concatenate(moves), np.concatenate(dts), np.concatenate(weights)
+
+    def pairs(self, space):
+        """Pairs of consecutive steps ``(x0, x1, x2, h1, h2, weight)`` of every trajectory."""
+        self._check_pairs()
+        parts = []
+        for k, (t, S) in enumerate(self.trajectories):
+            moves = space.wrap_difference(np.diff(S, axis=0))
+            h = np.diff(t)
+            w = 1.0 if self.trajectory_weight is None else self.trajectory_weight[k]
+            parts.append((S[:-2], S[1:-1], S[2:], moves[:-1] + moves[1:], h[:-1], h[1:],
+                          np.full(S.shape[0] - 2, w)))
+        return tuple(np.concatenate(column) for column in zip(*parts))
+
+    def _check_pairs(self):
+        if self.trajectories is None:
+            raise ValueError(
+                "fit_on='simpson' fits pairs of observed steps of trajectories: pass "
+                "the output of DerivativeTransformer (trajectories with their times), "
+                "not 2-D states with derivatives."
+            )
+        short = [k for k, (_, S) in enumerate(self.trajectories) if S.shape[0] < 3]
+        if short:
+            raise ValueError(
+                f"fit_on='simpson' needs at least three samples per trajectory (one pair "
+                f"of steps); {len(short)} of {len(self.trajectories)} trajectories have "
+                f"fewer (the first is number {short[0]}). Drop them, or fit with "
+                f"fit_on='steps'."
+            )
+
+    def quadrature(self, space, fit_on, n_nodes):
+        """The :class:`Quadrature` of the fit's row groups."""
+        if fit_on == "steps":
+            x0, dx, dt, weight = self.steps(space)
+            nodes, node_weights = gauss_on_unit(n_nodes)
+            points = [(x0 + s * dx, w) for s, w in zip(nodes, node_weights)]
+            return Quadrature(points, dx / dt[:, None], weight)
+        if fit_on == "simpson":
+            x0, x1, x2, move, h1, h2, weight = self.pairs(space)
+            # Simpson's rule on two intervals of any lengths, normalized to sum to one.
+            points = [
+                (x0, (2.0 - h2 / h1) / 6.0),
+                (x1, (h1 + h2) ** 2 / (6.0 * h1 * h2)),
+                (x2, (2.0 - h1 / h2) / 6.0),
+            ]
+            return Quadrature(points, move / (h1 + h2)[:, None], weight)
+        return Quadrature([(self.states, 1.0)], self.derivatives, self.sample_weight)
+
+    def n_rows(self, fit_on):
+        """Number of state (or step) row groups the fit will have."""
+        if fit_on == "steps" and self.trajectories is not None:
+            return sum(max(0, S.shape[0] - 1) for _, S in self.trajectories)
+        if fit_on == "simpson":
+            self._check_pairs()
+            return sum(S.shape[0] - 2 for _, S in self.trajectories)
+        return self.states.shape[0]
+
+
+class Quadrature:
+    """Where a fit's row groups evaluate the basis, and what they are fitted to.
+
+    Row group ``r`` fits ``sum_k w_k[r] f(X_k[r]) ≈ rate[r]`` for the model's
+    field (or its gradient) ``f``.
+
+    Parameters
+    ----------
+    points : list of (ndarray of shape (n_groups, n_states), float or ndarray of shape (n_groups,))
+        The points ``X_k`` and their weights ``w_k``.
+    rate : ndarray of shape (n_groups, n_states) or (n_groups, n_targets)
+        The time derivative (or mean rate of change) each group fits.
+    weight : ndarray of shape (n_groups,) or None
+        Weights of the row groups.
+    """
+
+    def __init__(self, points, rate, weight):
+        self.points = points
+        self.rate = rate
+        self.weight = weight
+        self.n_groups = rate.shape[0]
+
+    def scale(self, values, w, rows):
+        """Multiply ``values`` (rows on the last axis) in place by a point's weights."""
+        if np.isscalar(w):
+            if w != 1.0:
+                values *= w
+        else:
+            values *= w[rows]
+        return values
+
+    def weighted_sum(self, function, rows):
+        """``sum_k w_k function(X_k[rows])``, each result with the rows on its last axis."""
+        total = None
+        for X, w in self.points:
+            part = self.scale(function(X[rows]), w, rows)
+            total = part if total is None else total + part
+        return total
