@@ -53,6 +53,7 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
         "degree": [Interval(Integral, 1, None, closed="left")],
         "domain": ["array-like", None],
         "periodic": ["array-like", None],
+        "mixed": ["array-like", None],
         "momentum_degree": [Interval(Integral, 0, None, closed="left"), None],
         "separable": ["boolean"],
         "max_interaction": [Interval(Integral, 1, None, closed="left"), None],
@@ -67,13 +68,14 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
     _include_constant = False
 
     def __init__(
-        self, degree=3, *, domain=None, periodic=None, momentum_degree=None,
+        self, degree=3, *, domain=None, periodic=None, mixed=None, momentum_degree=None,
         separable=False, max_interaction=None, couplings=None, fit_on="derivatives",
         threshold=0.0, solver="auto", verbose=0,
     ):
         self.degree = degree
         self.domain = domain
         self.periodic = periodic
+        self.mixed = mixed
         self.momentum_degree = momentum_degree
         self.separable = separable
         self.max_interaction = max_interaction
@@ -187,13 +189,19 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
         ``support_``.
         """
         if getattr(self, "_space", None) is None:
-            self._space = ModelSpace(self.domain_, self.powers_, self.periodic_)
+            self._space = ModelSpace(self.domain_, self.powers_, self.periodic_, self._mixed())
         rows = self.support_ if self.support_.ndim == 1 else self.support_.any(axis=1)
         if rows.all():
             self._eval_space, self._eval_rows = self._space, None
         else:
-            self._eval_space = ModelSpace(self.domain_, self.powers_[rows], self.periodic_)
+            self._eval_space = ModelSpace(self.domain_, self.powers_[rows], self.periodic_,
+                                          self._mixed())
             self._eval_rows = rows
+
+    def _mixed(self):
+        """``mixed_``, or none mixed for a model saved before mixed variables existed."""
+        mixed = getattr(self, "mixed_", None)
+        return np.zeros(self.n_features_in_, dtype=bool) if mixed is None else mixed
 
     @property
     def _eval_coef(self):

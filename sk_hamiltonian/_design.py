@@ -272,4 +272,4 @@ def quadrature_nodes(space, of_gradient=True):
     """
     k = space.degree - 1 if of_gradient else space.degree
     n = max(1, math.ceil((k + 1) / 2))
-    return n + (phase_nodes(0.0) if space.periodic.any() else 0)
+    return n + (phase_nodes(0.0) if space.has_fourier else 0)

@@ -33,7 +33,7 @@ from ._space.builder import build_space as _build
 def space_parameters(estimator):
     """The estimator's parameters of :func:`~._space.builder.build_space` but the domain."""
     return dict(
-        degree=estimator.degree, periodic=estimator.periodic,
+        degree=estimator.degree, periodic=estimator.periodic, mixed=estimator.mixed,
         momentum_degree=estimator.momentum_degree, separable=estimator.separable,
         max_interaction=estimator.max_interaction, couplings=estimator.couplings,
         include_constant=estimator._include_constant,
@@ -174,6 +174,7 @@ def set_fitted(estimator, space, solution, data, *, solver="normal", statistics=
     """
     est = estimator
     est.periodic_, est.powers_, est.domain_ = space.periodic, space.powers, space.domain
+    est.mixed_ = space.mixed
     est._space = space
     est.solver_ = solver
     est.n_features_in_ = data.states.shape[1]

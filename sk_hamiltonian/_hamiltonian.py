@@ -52,6 +52,16 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
         sin k theta`` with ``theta = 2 pi (x - low) / (high - low)``), and states
         outside its period are wrapped, not extrapolated, everywhere. None:
         no periodic variable.
+    mixed : array-like of shape (n_states,) of bool, default=None
+        True gives a non-periodic variable ``x`` the Fourier terms ``cos k x``,
+        ``sin k x`` (period ``2 pi``, in the variable's own units) beside its
+        Legendre polynomials, and products with the other variables as
+        usual (a frequency counts like a degree). So laws that are neither
+        polynomial nor periodic in ``x`` are sparse: a torsion pendulum's
+        ``p**2 / 2 + k q**2 / 2 - g cos q`` has three terms. Mixed variables
+        are not wrapped; their box is their interval, as for polynomials, and
+        ``H~`` has zero mean over the box only up to its Fourier terms. None:
+        no mixed variable.
     momentum_degree : int, default=None
         Largest total degree in the momenta ``p``. 2 spans every mechanical
         Hamiltonian ``p^T M(q) p / 2 + b(q)^T p + V(q)`` with far fewer terms.
@@ -145,6 +155,9 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
         readably.
     periodic_ : ndarray of shape (n_states,) of bool
         Which variables are periodic.
+    mixed_ : ndarray of shape (n_states,) of bool
+        Which variables are mixed; in ``powers_`` their Fourier factors have
+        negative codes: ``-(2k - 1)`` for ``cos k x``, ``-2k`` for ``sin k x``.
     domain_ : ndarray of shape (n_states, 2)
         The box the basis lives on.
     damping_ : ndarray of shape (n_dof,)
@@ -226,12 +239,13 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
     }
 
     def __init__(
-        self, degree=3, *, domain=None, periodic=None, momentum_degree=None,
+        self, degree=3, *, domain=None, periodic=None, mixed=None, momentum_degree=None,
         separable=False, max_interaction=None, couplings=None, fit_on="derivatives",
         threshold=0.0, damping=False, solver="auto", verbose=0,
     ):
         super().__init__(
-            degree, domain=domain, periodic=periodic, momentum_degree=momentum_degree,
+            degree, domain=domain, periodic=periodic, mixed=mixed,
+            momentum_degree=momentum_degree,
             separable=separable, max_interaction=max_interaction, couplings=couplings,
             fit_on=fit_on, threshold=threshold, solver=solver, verbose=verbose,
         )
@@ -285,6 +299,7 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
         for terms, variables in ((on_p, slice(0, d)), (~on_p, slice(d, 2 * d))):
             part = ModelSpace(
                 self.domain_[variables], powers[terms][:, variables], self.periodic_[variables],
+                self._mixed()[variables],
             )
             parts.append((part, coef[terms]))
         return parts
@@ -392,7 +407,7 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
         return Dynamics(
             self._vector_field, jacobian=self._jacobian,
             damping=self._damping(), n_nodes=quadrature_nodes(self._eval_space),
-            phase_rates=self._eval_space.phase_rates if self.periodic_.any() else None,
+            phase_rates=self._eval_space.phase_rates if self._eval_space.has_fourier else None,
             wrap=self._space.wrap if self.periodic_.any() else None, **split,
             compiled=KernelModel(
                 "gradient", self._eval_space, self._eval_coef, self._damping(), self._split

@@ -38,6 +38,9 @@ class VectorFieldRegressor(BaseTrajectoryRegressor):
         periodic variables.
     periodic : array-like of shape (n_states,) of bool, default=None
         Angles, with a trigonometric basis; as in :class:`HamiltonianRegressor`.
+    mixed : array-like of shape (n_states,) of bool, default=None
+        Variables with Fourier terms of period ``2 pi`` beside their
+        polynomials; as in :class:`HamiltonianRegressor`.
     momentum_degree : int, default=None
         Largest total degree in the momenta (the first half of the variables)
         of each component; None: no limit.
@@ -75,6 +78,8 @@ class VectorFieldRegressor(BaseTrajectoryRegressor):
         variables, as in :class:`HamiltonianRegressor`).
     periodic_ : ndarray of shape (n_states,) of bool
         Which variables are periodic.
+    mixed_ : ndarray of shape (n_states,) of bool
+        Which variables are mixed.
     domain_ : ndarray of shape (n_states, 2)
         The box the basis lives on.
     cond_ : float
@@ -157,7 +162,7 @@ class VectorFieldRegressor(BaseTrajectoryRegressor):
         return Dynamics(
             self._vector_field, jacobian=self._jacobian,
             n_nodes=quadrature_nodes(self._eval_space, of_gradient=False),
-            phase_rates=self._eval_space.phase_rates if self.periodic_.any() else None,
+            phase_rates=self._eval_space.phase_rates if self._eval_space.has_fourier else None,
             wrap=self._space.wrap if self.periodic_.any() else None,
             compiled=KernelModel("value", self._eval_space, self._eval_coef),
         )

@@ -36,7 +36,6 @@ from scipy import sparse
 from sklearn.exceptions import ConvergenceWarning
 
 from .._solvers import solve_nonnegative_tail
-from .._space.readable import ReadableBasis
 from .column_solvers import accumulated_solver
 
 # Cap on the solves of one thresholded fit (each one shrinks the support).
@@ -102,8 +101,7 @@ class SupportRule:
         return fit_support(
             solve, column_norms, self.n_columns, n_basis=space.n_terms,
             threshold=self.threshold, n_nonnegative=self.n_nonnegative,
-            readable=(ReadableBasis(space.powers, space.domain, space.periodic)
-                      if self.threshold else None),
+            readable=space.readable_basis() if self.threshold else None,
             name=self.name,
         )
 

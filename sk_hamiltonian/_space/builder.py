@@ -1,8 +1,8 @@
 """The model space of a fit, from the estimator's parameters and the training states.
 
 The regressors' parameters say which space to fit in (``degree``,
-``periodic``, ``momentum_degree``, ``separable``, ``max_interaction``,
-``couplings``, ``domain``); here they are checked against the data's state
+``periodic``, ``mixed``, ``momentum_degree``, ``separable``,
+``max_interaction``, ``couplings``, ``domain``); here they are checked against the data's state
 variables and the box is fitted to the training states. :func:`build_space`
 does the whole job and returns the :class:`~.space.ModelSpace`; the
 regressors' ``fit``, ``partial_fit``, the dask fit and a search over
@@ -25,7 +25,7 @@ THINNEST_DOMAIN = 1e-100
 
 def build_space(states, *, degree, domain=None, periodic=None, momentum_degree=None,
                 separable=False, max_interaction=None, couplings=None,
-                include_constant=False, sample_weight=None, check_size=None):
+                include_constant=False, sample_weight=None, check_size=None, mixed=None):
     """The model space of the parameters on the training states, every parameter checked.
 
     Parameters
@@ -40,6 +40,9 @@ def build_space(states, *, degree, domain=None, periodic=None, momentum_degree=N
         ``[-pi, pi)`` for periodic variables).
     periodic : array-like of shape (n_states,) of bool, default=None
         Which variables are angles; None: none.
+    mixed : array-like of shape (n_states,) of bool, default=None
+        Which variables carry Fourier terms of period ``2 pi`` beside their
+        Legendre polynomials (:mod:`.mixed`); None: none.
     include_constant : bool, default=False
         Whether the basis holds the constant (the vector-field baseline's
         does; a Hamiltonian's constant is free).
@@ -64,15 +67,16 @@ def build_space(states, *, degree, domain=None, periodic=None, momentum_degree=N
     """
     n_states = states.shape[1]
     periodic = fit_periodic(periodic, n_states)
+    mixed = fit_mixed(mixed, periodic)
     powers = space_index_set(
         n_states, degree=degree, periodic=periodic, momentum_degree=momentum_degree,
         separable=separable, max_interaction=max_interaction, couplings=couplings,
-        include_constant=include_constant,
+        include_constant=include_constant, mixed=mixed,
     )
     if check_size is not None:
         check_size(powers)
     spanning = states if sample_weight is None else states[sample_weight > 0]
-    return ModelSpace(fit_domain(spanning, domain, periodic), powers, periodic)
+    return ModelSpace(fit_domain(spanning, domain, periodic), powers, periodic, mixed)
 
 
 def fit_periodic(periodic, n_states):
@@ -91,19 +95,43 @@ def fit_periodic(periodic, n_states):
     return flags.astype(bool)
 
 
+def fit_mixed(mixed, periodic):
+    """``mixed`` as a boolean array of one flag per state variable, none of them periodic."""
+    n_states = periodic.shape[0]
+    if mixed is None:
+        return np.zeros(n_states, dtype=bool)
+    flags = np.asarray(mixed)
+    if flags.shape != (n_states,) or not (flags.dtype == bool or np.isin(flags, (0, 1)).all()):
+        raise ValueError(
+            f"mixed must be None or an array of {n_states} booleans, True for each state "
+            f"variable whose polynomials get Fourier terms of period 2 pi beside them; got "
+            f"{mixed!r}."
+        )
+    flags = flags.astype(bool)
+    both = np.flatnonzero(flags & periodic)
+    if both.size:
+        raise ValueError(
+            f"State variable(s) {both.tolist()} are both periodic and mixed: a periodic "
+            f"variable (an angle) has only Fourier terms, a mixed one has polynomials and "
+            f"Fourier terms. Set one of periodic or mixed to False for them."
+        )
+    return flags
+
+
 def space_index_set(n_states, *, degree, periodic=None, momentum_degree=None, separable=False,
-                    max_interaction=None, couplings=None, include_constant=False):
+                    max_interaction=None, couplings=None, include_constant=False, mixed=None):
     """The multi-indices of the parameters' space for ``n_states`` variables (checked)."""
     if (momentum_degree is not None or separable) and n_states % 2:
         raise ValueError(
             f"momentum_degree and separable need states (p_1..p_d, q_1..q_d) with an "
             f"even number of variables; X has {n_states}."
         )
+    periodic = fit_periodic(periodic, n_states)
     return index_set(
-        n_states, degree, periodic=fit_periodic(periodic, n_states),
+        n_states, degree, periodic=periodic,
         momentum_degree=momentum_degree, separable=separable,
         max_interaction=max_interaction, couplings=check_couplings(couplings, n_states),
-        include_constant=include_constant,
+        include_constant=include_constant, mixed=fit_mixed(mixed, periodic),
     )
 
 

@@ -17,6 +17,7 @@ from . import compiled, tensor
 from .contraction import ContractionPlan
 from .derivative_maps import DerivativeMaps
 from .flat import FlatPlan, choose_flat
+from .readable import ReadableBasis
 from .fourier import fourier_column, fourier_frequency, wrap_to_period
 from .mixed import MIXED_PERIOD, factor_degrees, mixed_codes, mixed_columns
 from .tables import FactorTables
@@ -161,17 +162,18 @@ class ModelSpace:
             self.mixed,
         )
         # Built on first use: (plan,), the flat plans by order, the
-        # coefficient matrices of the last coefficients (cached_binding) and
-        # the derivative maps.
+        # coefficient matrices of the last coefficients (cached_binding), the
+        # derivative maps and the readable basis.
         self._contraction = None
         self._flat_plans = {}
         self._bindings = {}
         self._derivative_maps = None
+        self._readable = None
 
     def __getstate__(self):
         # Caches are rebuilt on first use; keep pickles (joblib, dask) small.
         state = {**self.__dict__, "_contraction": None, "_flat_plans": {}, "_bindings": {},
-                 "_derivative_maps": None}
+                 "_derivative_maps": None, "_readable": None}
         state.pop("_kernel_tree", None)
         state.pop("_checked_kernel", None)
         return state
@@ -180,7 +182,9 @@ class ModelSpace:
         # Pickles of other versions may lack (or carry other) caches.
         self.__dict__.update(state)
         self._contraction, self._flat_plans, self._bindings = None, {}, {}
-        self._derivative_maps = None
+        self._derivative_maps = self._readable = None
+        # Spaces pickled before mixed variables existed.
+        self.__dict__.setdefault("mixed", np.zeros(self.domain.shape[0], dtype=bool))
 
     @property
     def n_states(self):
@@ -330,6 +334,12 @@ class ModelSpace:
     def gradients_t(self, X, out=None):
         """Gradients, terms-major: ndarray (n_terms, n_states, n_samples), into ``out`` if given."""
         return tensor.gradients(self.factor_tables(X, 1), self.layout, out=out)
+
+    def readable_basis(self):
+        """The change to the readable basis (:class:`.ReadableBasis`), built once."""
+        if self._readable is None:
+            self._readable = ReadableBasis(self.powers, self.domain, self.periodic, self.mixed)
+        return self._readable
 
     def derivative_maps(self):
         """The gradient as maps onto a value basis (:class:`.DerivativeMaps`), built once."""

@@ -11,7 +11,7 @@ threshold share their rows:
 - the index set of a smaller degree is a subset of the largest one's on the
   same box, so its normal equations are a sub-block;
 - a threshold is a support rule on the same normal equations
-  (:func:`~sk_hamiltonian._least_squares.fit_support`).
+  (:func:`~sk_hamiltonian._fit_steps.solve_normal_equations`).
 
 The same quantities give each candidate's held-out *equation error*, the
 relative residual ``||A_k c - b_k||**2 / ||b_k||**2`` of fold ``k``'s rows for
@@ -29,11 +29,12 @@ spans do not depend on its box, only their conditioning does.
 import warnings
 
 import numpy as np
+from sklearn.base import clone
 
+from .. import _fit_steps as steps
 from .._hamiltonian import HamiltonianRegressor
-from .._least_squares import accumulated_solver, fit_support
+from .._space import ModelSpace
 from .._space.mixed import factor_degrees
-from .._space.readable import ReadableBasis
 from .._trajectories import unpack_derivatives
 
 
@@ -50,6 +51,16 @@ def take(X, indices):
     if isinstance(X, np.ndarray):
         return X[indices]
     return [X[i] for i in indices]
+
+
+class _NoSizeCheck:
+    """Data seen by the size check only for its shapes: the folds' totals decide."""
+
+    def __init__(self, data):
+        self.states, self.derivatives = data.states, data.derivatives
+
+    def n_rows(self, fit_on):
+        return np.inf
 
 
 class FoldProblems:
@@ -72,49 +83,54 @@ class FoldProblems:
     ----------
     domain : ndarray of shape (n_states, 2)
         The box of every problem.
-    powers : ndarray of shape (n_terms, n_states)
-        Multi-indices of the largest degree.
+    space : ModelSpace
+        The space of the largest degree.
+    n_rows : int
+        Least-squares rows of the whole data.
     """
 
     def __init__(self, params, Xt, folds, degree):
         self.params = dict(params)
-        self.Xt, self.folds = Xt, folds
-        n_states = unpack_derivatives(Xt).states[0].shape[1]
+        self.folds = folds
+        self._model = HamiltonianRegressor(**self.params, degree=degree)
+        self._model._validate_params()
+        self.data = self._model._training_data(Xt, None, None)
+        n_states = self.data.states.shape[1]
         periodic = self.params.get("periodic")
-        self.domain = layout_domain(Xt, [False] * n_states if periodic is None else periodic)
-        model = self._regressor(degree, 0.0)
-        with warnings.catch_warnings():
-            # The box holds every state: nothing is outside it.
-            warnings.simplefilter("ignore")
-            data = model._training_data(Xt, None, None)
-            model._set_up_space(data, size_data=_NoSizeCheck(data))
-        self._model = model
-        self.powers = model.powers_
-        self.periodic, self.mixed = model.periodic_, _mixed(model)
-        self.n_tail = model._n_nonnegative()
-        self.n_rows = data.n_rows(model.fit_on) * n_states
-        self.gram, self.rhs, self.norm2 = [], [], []
-        for test in folds:
-            part = model._training_data(take(Xt, test), None, None, reset=False)
-            gram, rhs = model._accumulate(part).result()
-            self.gram.append(gram)
-            self.rhs.append(rhs)
-            self.norm2.append(_squared_targets(model, part))
-        self.total = (sum(self.gram), sum(self.rhs))
-        self._readable = {}
-
-    def _regressor(self, degree, threshold):
-        return HamiltonianRegressor(
-            **{**self.params, "degree": degree, "threshold": threshold, "domain": self.domain})
+        self.domain = layout_domain(Xt, np.zeros(n_states, bool) if periodic is None else periodic)
+        self.space = steps.build_space(self._model, self.data, domain=self.domain,
+                                       size_data=_NoSizeCheck(self.data))
+        self._design = self._model._design(self.space)
+        self.n_tail = self._design.n_nonnegative
+        self.n_rows = self._design.n_rows(self.data)
+        self.parts = [steps.normal_equations(self._model, self.space,
+                                             self.data.take_trajectories(test))
+                      for test in folds]
+        self.total = tuple(sum(part[i] for part in self.parts) for i in range(3))
+        self._spaces = {}
 
     def columns(self, degree):
         """Unknowns of the problem of ``degree``: its basis functions, then the friction ones."""
-        basis = factor_degrees(self.powers, self.mixed).sum(axis=1) <= degree
+        space = self.space
+        basis = factor_degrees(space.powers, space.mixed).sum(axis=1) <= degree
         return np.concatenate([basis, np.ones(self.n_tail, dtype=bool)])
 
     def n_unknowns(self, degree):
         """Number of unknowns of the problem of ``degree``."""
         return int(self.columns(degree).sum())
+
+    def space_of(self, degree):
+        """The model space of ``degree`` on the shared box (built once)."""
+        if degree not in self._spaces:
+            rows = self.columns(degree)[: self.space.n_terms]
+            space = self.space
+            self._spaces[degree] = ModelSpace(space.domain, space.powers[rows], space.periodic,
+                                              space.mixed)
+        return self._spaces[degree]
+
+    def estimator(self, degree, threshold):
+        """The candidate's regressor, its parameters as a fit would have them."""
+        return clone(self._model).set_params(degree=degree, threshold=threshold)
 
     def solve(self, degree, threshold, fold=None):
         """The support rule's solution on every fold but ``fold`` (None: on all the data).
@@ -126,75 +142,34 @@ class FoldProblems:
         solution : sk_hamiltonian._least_squares.Solution
         """
         columns = self.columns(degree)
-        gram, rhs = self.total
+        gram, rhs, _ = self.total
         if fold is not None:
-            gram, rhs = gram - self.gram[fold], rhs - self.rhs[fold]
-        gram, rhs = gram[np.ix_(columns, columns)], rhs[columns]
-        n_basis = int(columns.sum()) - self.n_tail
-        readable = self.readable_basis(degree) if threshold else None
-        solve, norms = accumulated_solver(gram, rhs)
-        solution = fit_support(
-            solve, norms, n_basis + self.n_tail, n_basis=n_basis, threshold=threshold,
-            readable=readable, n_nonnegative=self.n_tail, name="HamiltonianSearchCV",
-        )
-        return columns, solution
-
-    def readable_basis(self, degree):
-        """The change to the readable basis of the space of ``degree`` (built once)."""
-        if degree not in self._readable:
-            columns = self.columns(degree)
-            powers = self.powers[columns[: columns.size - self.n_tail]]
-            self._readable[degree] = ReadableBasis(powers, self.domain, self.periodic, self.mixed)
-        return self._readable[degree]
+            gram, rhs = gram - self.parts[fold][0], rhs - self.parts[fold][1]
+        equations = (gram[np.ix_(columns, columns)], rhs[columns])
+        model = self.estimator(degree, threshold)
+        return columns, steps.solve_normal_equations(model, self.space_of(degree), equations)
 
     def equation_error(self, columns, coef, fold):
         """Relative residual of fold ``fold``'s rows for ``coef`` (the unknowns of ``columns``)."""
-        gram, rhs = self.gram[fold][np.ix_(columns, columns)], self.rhs[fold][columns]
-        norm2 = self.norm2[fold]
-        residual = coef @ gram @ coef - 2.0 * coef @ rhs + norm2
-        return max(float(residual), 0.0) / norm2 if norm2 > 0 else float(residual)
+        gram, rhs, btb = self.parts[fold]
+        gram, rhs = gram[np.ix_(columns, columns)], rhs[columns]
+        residual = float(coef @ gram @ coef - 2.0 * coef @ rhs + btb)
+        return max(residual, 0.0) / btb if btb > 0 else residual
 
     def fitted(self, degree, threshold, solution, fold=None):
         """A fitted :class:`~sk_hamiltonian.HamiltonianRegressor` from a solution.
 
-        Its space and fitted attributes are those of a fit on fold ``fold``'s
-        training trajectories (all the data for None) on :attr:`domain`.
+        Its fitted attributes are those of a fit on fold ``fold``'s training
+        trajectories (all the data for None), on :attr:`domain`.
         """
-        model = self._regressor(degree, threshold)
-        indices = (np.arange(_n_trajectories(self.Xt)) if fold is None
-                   else np.setdiff1d(np.arange(_n_trajectories(self.Xt)), self.folds[fold]))
+        data = self.data
+        if fold is not None:
+            n_trajectories = len(data.trajectories)
+            data = data.take_trajectories(np.setdiff1d(np.arange(n_trajectories),
+                                                       self.folds[fold]))
+        model = self.estimator(degree, threshold).set_params(domain=self.domain)
         with warnings.catch_warnings():
+            # The fold models' own checks (energy trend, conditioning) are the
+            # search's business, not the user's.
             warnings.simplefilter("ignore")
-            data = model._training_data(take(self.Xt, indices), None, None)
-            model._set_up_space(data, size_data=_NoSizeCheck(data))
-            model._set_solution(solution)
-            model.solver_ = "normal"
-            model._finish_fit(data)
-        return model
-
-
-class _NoSizeCheck:
-    """A fold's data seen by the size check only for its shapes (the total decides)."""
-
-    def __init__(self, data):
-        self.states, self.derivatives = data.states, data.derivatives
-
-    def n_rows(self, fit_on):
-        return np.inf
-
-
-def _squared_targets(model, data):
-    """``b^T b`` of the design of ``data``."""
-    total = 0.0
-    for _, b in model._design_blocks(data):
-        total += float(np.einsum("i,i->", b, b) if b.ndim == 1 else np.sum(b * b))
-    return total
-
-
-def _mixed(model):
-    mixed = getattr(model, "mixed_", None)
-    return np.zeros(model.n_features_in_, dtype=bool) if mixed is None else mixed
-
-
-def _n_trajectories(Xt):
-    return len(Xt)
+            return steps.set_fitted(model, self.space_of(degree), solution, data)
