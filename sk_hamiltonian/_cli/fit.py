@@ -18,6 +18,7 @@ from .errors import UsageError, check_positive
 from .figure import draw_report
 from .parser import MODEL_FILE, check_options
 from .report import describe_energy_trend, print_choice, print_drift, print_errors
+from .discovery import run_discovery
 from .search import run_search
 from .words import counted
 
@@ -32,7 +33,7 @@ def run(args):
     _prepare_output(args.output)
     print(f"data: {data.title}")
     X, names = data.X, data.names
-    result = run_search(args, data)
+    result = (run_search if args.paper_grid else run_discovery)(args, data)
     best = result.best
     model = best[-1]
     print_choice(result)
@@ -53,11 +54,18 @@ def run(args):
         "u0* = (" + ", ".join(f"{v:g}" for v in x0) + ")" if system is not None
         else "the first observation of the first trajectory"
     )
-    print(f"\nsimulated from {origin} up to T = {t[-1]:g} (RK4 step {data.step:g}):")
+    method = model._default_method()
+    print(
+        f"\nsimulated from {origin} up to T = {t[-1]:g} ("
+        + (f"RK4 step {data.step:g}" if method == "rk4" else
+           f"SP: {method.upper()}, the map a fit on steps learns, at the data step; "
+           f"non-SP: RK4 step {data.step:g}")
+        + "):"
+    )
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # leaving the domain is reported as a failure
         rk4, avf = _rollout(model, x0, t, "rk4"), _rollout(model, x0, t, "avf")
-        curves = {"SP": rk4}
+        curves = {"SP": rk4 if method == "rk4" else avf}
         if baseline is not None:
             curves["non-SP"] = _rollout(baseline[-1], x0, t, "rk4")
     truth, errors = None, {}
@@ -142,10 +150,12 @@ def _provenance(args, data, result):
 
 
 def _fit_baseline(best, X):
-    """The component-wise (non-SP) baseline at the chosen degrees, or None if it cannot fit."""
+    """The component-wise (non-SP) baseline in the chosen space, every term, or None if it cannot fit."""
+    chosen = best[-1]
     baseline = make_pipeline(
         DerivativeTransformer(**best[0].get_params()),
-        VectorFieldRegressor(degree=best[-1].degree, domain=best[-1].domain),
+        VectorFieldRegressor(degree=chosen.degree, domain=chosen.domain,
+                             periodic=chosen.periodic, mixed=chosen.mixed),
     )
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")

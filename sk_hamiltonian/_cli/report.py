@@ -57,18 +57,25 @@ def print_choice(result):
     )
     if len(labels) == 1:
         return
-    table = candidate_table(results)
-    others = [k for k in np.flatnonzero(table["tied"]) if k != i]
+    # A search that says which candidates tie (HamiltonianSearchCV: paired
+    # standard errors among its finalists) is read as it is; a grid search
+    # by the unpaired rule of candidate_table.
+    paired = "tied" in results
+    tied = results["tied"] if paired else candidate_table(results)["tied"]
+    others = [k for k in np.flatnonzero(tied) if k != i]
+    band = "one paired standard error" if paired else "one standard error"
     if others:
         names = "; ".join(labels[k] for k in others[:4])
         more = f" and {len(others) - 4} more" if len(others) > 4 else ""
         print(
-            f"tied: {counted(len(others), 'other candidate')} within one "
-            f"standard error of the best ({names}{more}): the cross-validation cannot tell "
-            f"them apart, so this pick among them is partly chance"
+            f"tied: {counted(len(others), 'other candidate')} within {band} of the best "
+            f"({names}{more}): the cross-validation cannot tell them apart"
+            + (", and the pick among them is the simplest (fewest terms, smoothest "
+               "de-noising, least biased fit target)" if paired else
+               ", so this pick among them is partly chance")
         )
     else:
-        print("no tie: every other candidate scores more than one standard error below")
+        print(f"no tie: every other candidate scores more than {band} below")
 
 
 def print_errors(t, curves, truth):

@@ -206,7 +206,7 @@ def _grid(args, data):
     Qs = [Q for Q in denoise if Q != "fd"]
     if Qs:
         grid.append({METHOD_KEY: ["polynomial"], Q_KEY: Qs, N_KEY: degrees})
-    thresholds = parse_threshold(args.threshold)
+    thresholds = parse_threshold(args.threshold or "0")
     if thresholds != [0.0]:  # the default grid stays today's
         for entry in grid:
             entry[THRESHOLD_KEY] = thresholds

@@ -78,6 +78,9 @@ class FoldProblems:
         Held-out trajectories of each fold.
     degree : int
         The largest degree to be solved.
+    domain : array-like of shape (n_states, 2), default=None
+        The box of every problem; None: the bounding box of the layout's
+        states (one period ``[-pi, pi)`` for angles).
 
     Attributes
     ----------
@@ -89,7 +92,7 @@ class FoldProblems:
         Least-squares rows of the whole data.
     """
 
-    def __init__(self, params, Xt, folds, degree):
+    def __init__(self, params, Xt, folds, degree, domain=None):
         self.params = dict(params)
         self.folds = folds
         self._model = HamiltonianRegressor(**self.params, degree=degree)
@@ -97,7 +100,11 @@ class FoldProblems:
         self.data = self._model._training_data(Xt, None, None)
         n_states = self.data.states.shape[1]
         periodic = self.params.get("periodic")
-        self.domain = layout_domain(Xt, np.zeros(n_states, bool) if periodic is None else periodic)
+        if domain is None:
+            periodic = np.zeros(n_states, bool) if periodic is None else periodic
+            self.domain = layout_domain(Xt, periodic)
+        else:
+            self.domain = np.asarray(domain, dtype=float)
         self.space = steps.build_space(self._model, self.data, domain=self.domain,
                                        size_data=_NoSizeCheck(self.data))
         self._design = self._model._design(self.space)

@@ -137,6 +137,11 @@ class HamiltonianSearchCV(BaseEstimator):
         Sparsity thresholds (0: every term).
     damping : bool, default=False
         Fit linear friction with every candidate.
+    domain : array-like of shape (n_states, 2), default=None
+        The box of every candidate (for a periodic variable, its period);
+        None: the bounding box of each derivative layout's states, and
+        ``[-pi, pi)`` for periodic variables. Needed when a variable is
+        constant in the data.
     selection : {"simplest", "best_score"}, default="simplest"
         The final choice among the finalists' rollout scores.
         ``"best_score"``: the best mean score. ``"simplest"``: among the
@@ -213,6 +218,7 @@ class HamiltonianSearchCV(BaseEstimator):
         "fit_on": ["array-like"],
         "thresholds": ["array-like"],
         "damping": ["boolean"],
+        "domain": ["array-like", None],
         "selection": [StrOptions(set(SELECTIONS))],
         "cv": ["cv_object"],
         "n_jobs": [Integral, None],
@@ -222,7 +228,7 @@ class HamiltonianSearchCV(BaseEstimator):
     def __init__(
         self, dt=None, *, denoise_degrees=("finite_difference", 3, 5, 8), degrees=(4, 6, 8, 10),
         spaces="auto", fit_on=FIT_TARGETS, thresholds=(0.0, 0.001, 0.01, 0.03, 0.1),
-        damping=False, selection="simplest", cv=5, n_jobs=None, verbose=0,
+        damping=False, domain=None, selection="simplest", cv=5, n_jobs=None, verbose=0,
     ):
         self.dt = dt
         self.denoise_degrees = denoise_degrees
@@ -231,6 +237,7 @@ class HamiltonianSearchCV(BaseEstimator):
         self.fit_on = fit_on
         self.thresholds = thresholds
         self.damping = damping
+        self.domain = domain
         self.selection = selection
         self.cv = cv
         self.n_jobs = n_jobs
@@ -280,25 +287,27 @@ class HamiltonianSearchCV(BaseEstimator):
                   f"degree {degrees[0]}")
         screened = Parallel(n_jobs=self.n_jobs)(
             delayed(_unit)(layouts[reference], folds, [space], target, [degrees[0]], thresholds,
-                           self.damping, reference, rollout=False)
+                           self.damping, self.domain, reference, rollout=False)
             for space in spaces
         )
-        records = []
-        for k, (unit_records, _) in enumerate(screened):
+        records, failures = [], []
+        for k, (unit_records, _, unit_failures) in enumerate(screened):
+            failures.extend(unit_failures)
             for record in unit_records:
                 record.update(space=k, stage="screen")
             records.extend(unit_records)
-        kept = _kept_spaces(records, len(spaces))
+        kept = _kept_spaces(records, failures)
         self._say(f"kept: {[spaces[k] for k in kept]}")
         # Stages 2 and 3: every layout and fit target in the kept spaces.
         pairs = list(itertools.product(denoise, fit_on))
         results = Parallel(n_jobs=self.n_jobs)(
             delayed(_unit)(layouts[key], folds, [spaces[k] for k in kept], target_, degrees,
-                           thresholds, self.damping, key, rollout=True)
+                           thresholds, self.damping, self.domain, key, rollout=True)
             for key, target_ in pairs
         )
         finalists = []
-        for (key, target_), (unit_records, finalist) in zip(pairs, results):
+        for (key, target_), (unit_records, finalist, unit_failures) in zip(pairs, results):
+            failures.extend(unit_failures)
             for record in unit_records:
                 record.update(space=kept[record["space"]], stage="search")
             if finalist is not None:
@@ -308,7 +317,7 @@ class HamiltonianSearchCV(BaseEstimator):
         if not finalists:
             raise ValueError(
                 "No candidate could be fitted and scored in every fold. Give more "
-                "trajectories, lower degrees, or fewer folds."
+                "trajectories, lower degrees, or fewer folds." + _reason(failures)
             )
         scores = np.array([records[i]["scores"] for i in finalists])
         choice, tied = pick_among(
@@ -471,22 +480,29 @@ def _reference(denoise):
     return polynomial[len(polynomial) // 2] if polynomial else "finite_difference"
 
 
-def _unit(Xt, folds, spaces, fit_on, degrees, thresholds, damping, denoise, rollout):
+def _reason(failures):
+    """The first failure's message, as the end of an error message."""
+    return f" The first candidate's error: {failures[0]}" if failures else ""
+
+
+def _unit(Xt, folds, spaces, fit_on, degrees, thresholds, damping, domain, denoise, rollout):
     """Every candidate of one layout and fit target in ``spaces``; with ``rollout``, its finalist scored.
 
-    Returns the candidates' records (``space`` is the index into ``spaces``)
-    and the row of the finalist (None without ``rollout`` or without one).
+    Returns the candidates' records (``space`` is the index into ``spaces``),
+    the row of the finalist (None without ``rollout`` or without one), and
+    the messages of the spaces that could not be set up.
     """
-    records, problems = [], []
+    records, problems, failures = [], [], []
     n_folds = len(folds)
     for k, space in enumerate(spaces):
         params = {**space, "fit_on": fit_on, "damping": damping}
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             try:
-                problem = FoldProblems(params, Xt, folds, max(degrees))
-            except ValueError:
-                continue  # e.g. too few samples for Simpson pairs
+                problem = FoldProblems(params, Xt, folds, max(degrees), domain)
+            except ValueError as error:  # e.g. a constant variable, or no Simpson pairs
+                failures.append(str(error))
+                continue
         problems.append(problem)
         training = problem.n_rows * (n_folds - 1) / n_folds
         for degree in degrees:
@@ -531,11 +547,14 @@ def _unit(Xt, folds, spaces, fit_on, degrees, thresholds, damping, denoise, roll
         record["score_time"] = (time.perf_counter() - started) / n_folds
     for record in records:
         del record["problem"]
-    return records, finalist
+    return records, finalist, failures
 
 
-def _kept_spaces(records, n_spaces):
+def _kept_spaces(records, failures):
     """The spaces whose screened candidates tie with the best (simplest first, at most MAX_SPACES)."""
+    if not records:
+        raise ValueError(
+            "No model space could be set up on the screening layout." + _reason(failures))
     errors = np.array([r["errors"] for r in records])
     best, tied = pick_within(errors, np.array([r["n_terms"] for r in records]),
                              np.array([r["size"] for r in records]))

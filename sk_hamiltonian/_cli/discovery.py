@@ -1,0 +1,130 @@
+"""The command's default search: model spaces, fit targets, de-noising, degree and sparsity.
+
+:func:`run_discovery` runs :class:`~sk_hamiltonian.model_selection.HamiltonianSearchCV`
+and returns the same :class:`~sk_hamiltonian._cli.search.SearchResult` as the
+paper's grid (:func:`~sk_hamiltonian._cli.search.run_search`), so the report
+reads either.
+"""
+
+import time
+import warnings
+
+import numpy as np
+from sklearn.model_selection import GroupKFold, KFold
+
+from ..model_selection import HamiltonianSearchCV
+from .errors import UsageError
+from .parser import (
+    DEFAULT_DEGREES,
+    DEFAULT_DENOISE,
+    QUICK_DEGREES,
+    QUICK_DENOISE,
+    parse_denoise,
+    parse_domain,
+    parse_threshold,
+)
+from .search import SearchResult
+from .words import counted
+
+# Fit targets the command searches unless told (--fit-on).
+DEFAULT_FIT_ON = ("derivatives", "steps", "simpson")
+QUICK_FIT_ON = ("derivatives", "simpson")
+
+
+def run_discovery(args, data):
+    """Search spaces, fit targets, de-noising, degree and threshold on ``data``.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The command's options.
+    data : Data
+        What to fit (``X``, ``dt``, ``groups``, ``names``).
+
+    Returns
+    -------
+    result : SearchResult
+
+    Raises
+    ------
+    UsageError
+        If no candidate could be fitted: one line with the reason.
+    """
+    denoise = parse_denoise(args.denoise_degrees or (QUICK_DENOISE if args.quick else DEFAULT_DENOISE))
+    degrees = args.degrees or (QUICK_DEGREES if args.quick else DEFAULT_DEGREES)
+    thresholds = parse_threshold(args.threshold or "auto")
+    fit_on = args.fit_on or (QUICK_FIT_ON if args.quick else DEFAULT_FIT_ON)
+    if data.groups is None:
+        folds, what = KFold(args.cv, shuffle=True, random_state=args.seed), "whole trajectories"
+    else:
+        folds, what = GroupKFold(args.cv), "contiguous segments"
+    search = HamiltonianSearchCV(
+        dt=data.dt,
+        denoise_degrees=["finite_difference" if q == "fd" else q for q in denoise],
+        degrees=degrees, fit_on=fit_on, thresholds=thresholds, damping=args.damping,
+        domain=parse_domain(args.domain, data.names), cv=folds, verbose=1,
+    )
+    print(
+        f"search: model spaces (polynomial, periodic or mixed positions; general or "
+        f"mechanical), fit targets {', '.join(fit_on)}, de-noising {', '.join(map(str, denoise))}, "
+        f"degrees {', '.join(map(str, degrees))}, thresholds "
+        f"{', '.join(f'{v:g}' for v in thresholds)}; {args.cv} folds of {what}",
+        flush=True,
+    )
+    start = time.perf_counter()
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always")
+            search.fit(data.X, groups=data.groups)
+    except ValueError as error:
+        message = " ".join(str(error).split())
+        if "`domain`" in message:
+            message += (
+                f" On the command line: one --domain LOW HIGH per state variable, in the order "
+                f"{', '.join(data.names)}."
+            )
+        raise UsageError(f"the search failed: {message}") from None
+    fit_time = time.perf_counter() - start
+    results = search.cv_results_
+    n_states = len(data.names)
+    labels = [_describe(p, data.names[n_states // 2:]) for p in results["params"]]
+    n_candidates = len(labels)
+    return SearchResult(
+        best=search.best_estimator_,
+        cv_results=results,
+        best_index=int(search.best_index_),
+        labels=labels,
+        n_fits=n_candidates * search.n_splits_,
+        fit_time=fit_time,
+        warned=sorted({w.category.__name__ for w in caught}),
+        summary=(
+            f"HamiltonianSearchCV, {args.cv} folds of {what}, "
+            f"{counted(n_candidates, 'candidate')} "
+            f"({counted(int(np.sum(results['stage'] == 'finalist')), 'finalist')} scored by "
+            f"rollouts), selection = {search.selection}"
+        ),
+    )
+
+
+def _describe(params, positions):
+    """A candidate in a few words: layout, fit target, space, degree, threshold."""
+    get = params.get
+    layout = ("finite differences" if get("derivativetransformer__method") == "finite_difference"
+              else f"Q={get('derivativetransformer__degree')}")
+    parts = [layout, get("hamiltonianregressor__fit_on", "derivatives")]
+    for key, word in (("periodic", "periodic"), ("mixed", "mixed")):
+        flags = get(f"hamiltonianregressor__{key}")
+        if flags is not None:
+            d = len(flags) // 2
+            named = [positions[i] for i in range(d) if flags[d + i]]
+            if named:
+                parts.append(f"{word} {' '.join(named)}")
+    if get("hamiltonianregressor__momentum_degree") == 2:
+        parts.append("mechanical")
+    if get("hamiltonianregressor__separable"):
+        parts.append("separable")
+    parts.append(f"n={get('hamiltonianregressor__degree')}")
+    threshold = get("hamiltonianregressor__threshold", 0.0)
+    if threshold:
+        parts.append(f"threshold={threshold:g}")
+    return ", ".join(parts)
