@@ -7,9 +7,10 @@ structure; the checks that fail for that reason alone are listed below with the
 reason, and run in strict mode, so a check that starts passing must be removed
 from the list. The same properties are then checked on valid data in this file.
 
-``DerivativeTransformer`` takes 3-D trajectory arrays, so it declares
-``two_d_array=False`` and scikit-learn skips its common checks; its
-conformance tests on trajectories are below.
+``DerivativeTransformer`` and ``HamiltonianSearchCV`` take 3-D trajectory
+arrays, so they declare ``two_d_array=False`` and scikit-learn skips their
+common checks; the transformer's conformance tests on trajectories are below,
+the search's in tests/test_search.py.
 """
 
 import pickle
@@ -21,6 +22,7 @@ from sklearn.exceptions import NotFittedError
 from sklearn.utils.estimator_checks import check_estimator, parametrize_with_checks
 
 from sk_hamiltonian import DerivativeTransformer, HamiltonianRegressor, VectorFieldRegressor
+from sk_hamiltonian.model_selection import HamiltonianSearchCV
 
 ODD = "the generated X has an odd number of features; Hamiltonian states come in (p, q) pairs"
 Y_SHAPE = "the generated y does not have the shape of X; the target is dX/dt of every state"
@@ -77,6 +79,7 @@ def expected_failed_checks(estimator):
 @parametrize_with_checks(
     [
         HamiltonianRegressor(), VectorFieldRegressor(), DerivativeTransformer(dt=0.1),
+        HamiltonianSearchCV(dt=0.1),
         # Sparse fits take the same paths through validation and fitting.
         HamiltonianRegressor(threshold=0.05), VectorFieldRegressor(threshold=0.05),
     ],

@@ -386,8 +386,11 @@ class HamiltonianSearchCV(BaseEstimator):
 
     def __sklearn_tags__(self):
         tags = super().__sklearn_tags__()
+        # Raw trajectories, as DerivativeTransformer takes them.
+        tags.input_tags.two_d_array = False
         tags.input_tags.three_d_array = True
         tags.target_tags.required = False
+        tags.requires_fit = True
         return tags
 
     # ------------------------------------------------------------ checks
