@@ -3,6 +3,11 @@
 Speed is not asserted here (the benchmarks report same-run ratios instead).
 PySINDy is blocked on purpose, so the run also checks that the scripts skip the
 optional baseline gracefully wherever pysindy happens to be installed.
+
+The ``--quick`` runs take over a minute on two cores, so they are marked slow
+(run with ``--runslow``; CI does). In the default run, every script is checked
+to find the package's names it imports (many use private modules), and
+PySINDy-best's pieces run on small data.
 """
 
 import ast
@@ -14,6 +19,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from import_check import unresolved_imports
 
 BENCHMARKS = Path(__file__).resolve().parents[1] / "benchmarks"
 SPEED_COLUMNS = [
@@ -216,6 +222,11 @@ def test_scale_quick(tmp_path):
     assert sum(r["target"] != "" for r in rows) >= 4
     _, fits = _read(out / "scale_fit.csv")
     assert {r["sweep"] for r in fits} == {"samples", "terms"}
+
+
+@pytest.mark.parametrize("path", sorted(BENCHMARKS.glob("*.py")), ids=lambda p: p.name)
+def test_benchmark_scripts_find_what_they_import(path):
+    assert not unresolved_imports(path.read_text(encoding="utf-8"))
 
 
 def test_sindy_best_pieces():

@@ -2,7 +2,10 @@
 
 Each snippet runs on its own in a fresh interpreter (as a reader pastes it),
 with every warning turned into an error: a snippet that expects a warning
-must handle it in its own code, with the reason beside it.
+must handle it in its own code, with the reason beside it. That takes half a
+minute on two cores (the first snippet's reference solution alone takes most
+of it), so those runs are marked slow (run with ``--runslow``; CI does). In the
+default run the snippets are checked to find the package's names they import.
 """
 
 import os
@@ -13,6 +16,7 @@ import textwrap
 from pathlib import Path
 
 import pytest
+from import_check import unresolved_imports
 
 ROOT = Path(__file__).resolve().parents[1]
 README = ROOT / "README.md"
@@ -49,6 +53,14 @@ def check_hamiltonian_example(printed):
     assert error < 1e-2 and drift < 1e-12
 
 
+def test_readme_snippets_find_what_they_import():
+    blocks = code_blocks("python")
+    assert len(blocks) == 4
+    for i, block in enumerate(blocks):
+        assert not unresolved_imports(block), (i, unresolved_imports(block))
+
+
+@pytest.mark.slow
 def test_readme_snippets_run_as_pasted(tmp_path):
     blocks = code_blocks("python")
     assert len(blocks) == 4
@@ -67,18 +79,26 @@ def test_readme_snippets_run_as_pasted(tmp_path):
     assert (tmp_path / "oscillator.skh").exists()
 
 
+def test_docs_front_page_shows_the_readme_first_example():
+    (block,) = rst_python_blocks(INDEX)
+    # The front page shows the README's first example, not a variant of it.
+    assert block.strip() == code_blocks("python")[0].strip()
+
+
+@pytest.mark.slow
 def test_docs_front_page_snippet_runs_as_pasted(tmp_path):
     (block,) = rst_python_blocks(INDEX)
     check_hamiltonian_example(run_fresh(block, tmp_path))
-    # The front page shows the README's first example, not a variant of it.
-    assert block.strip() == code_blocks("python")[0].strip()
 
 
 @pytest.mark.skipif(not CI.exists(), reason="no .ci/run in this checkout")
 def test_ci_runs_the_readme_test_command():
     test_command = code_blocks("bash")[1].strip().split("&&")[-1].strip()
     assert test_command.endswith("python -m pytest")
-    assert "python -m pytest" in CI.read_text()
+    # CI runs everything: the same command with the slow tests, which the
+    # README gives beside the default one.
+    assert re.search(r"^python -m pytest --runslow$", CI.read_text(), flags=re.M)
+    assert "python -m pytest --runslow" in README.read_text()
 
 
 def test_no_path_outside_the_repository_is_committed():

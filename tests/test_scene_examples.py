@@ -3,8 +3,23 @@
 Each example of ``examples/scenes/`` runs in quick mode as a subprocess, as
 ``python examples/scenes/plot_*.py`` would, writing its figures and a JSON file
 of measured numbers into a temporary directory; the tests then check the files
-and the claims the example makes. Both run concurrently in one fixture (about
-40 s of CPU time each).
+and the claims the example makes. The three run concurrently in one fixture
+(about 20 s of CPU time each, half a minute on two idle cores), so these tests
+are marked slow (run with ``--runslow``; CI does, and its documentation build
+runs the examples too).
+
+Fast tests elsewhere check the same kinds of claim on smaller problems:
+
+- the Fourier-mechanical space against total degree on the double pendulum:
+  tests/test_model_spaces.py (full-circle angles, exact gradients);
+- the lattice's pairwise and nearest-neighbour spaces, their rollouts with
+  leapfrog, Yoshida and RK4, and leapfrog's bounded energy error:
+  tests/test_model_spaces.py; the Simpson fit of a chain: tests/test_simpson_fit.py;
+- the sparse pendulum's formula and better rollout: tests/test_sparse.py; the
+  chain's true monomials from one record: tests/test_simpson_fit.py.
+
+Only here: the double pendulum's learned terms against the true ones, the
+rollout outside the momentum box of the data, and the 16-particle chain.
 """
 
 import json
@@ -17,6 +32,8 @@ from pathlib import Path
 import pytest
 
 pytest.importorskip("matplotlib")
+
+pytestmark = pytest.mark.slow
 
 ROOT = Path(__file__).resolve().parents[1]
 SCENES = ROOT / "examples" / "scenes"

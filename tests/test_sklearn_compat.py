@@ -73,10 +73,36 @@ def expected_failed_checks(estimator):
     return {}
 
 
+def is_slow(estimator, check):
+    """The one common check that takes seconds (20 s on two busy cores), not milliseconds.
+
+    The weighted sparse fit on the generated data (hundreds of unknowns per
+    component) runs its thresholding iterations many times;
+    test_sparse_fit_weights_equal_repeated_samples checks the same property
+    on a small problem in the default run.
+    """
+    return (isinstance(estimator, VectorFieldRegressor) and estimator.threshold > 0
+            and getattr(check, "func", check).__name__
+            == "check_sample_weight_equivalence_on_dense_data")
+
+
+def with_slow_marks(parametrize):
+    """``parametrize`` with the cases that ``is_slow`` picks marked slow."""
+    argnames, cases = parametrize.args
+    marked = []
+    for case in cases:
+        # Expected failures come as pytest.param(..., marks=xfail), the rest as tuples.
+        values, marks = (case.values, list(case.marks)) if hasattr(case, "marks") else (case, [])
+        if is_slow(*values):
+            marks.append(pytest.mark.slow)
+        marked.append(pytest.param(*values, marks=marks))
+    return pytest.mark.parametrize(argnames, marked, **parametrize.kwargs)
+
+
 # VectorFieldRegressor is a general polynomial regressor; at its default degree
 # the generated problems (up to 10 features, a few samples) are underdetermined,
 # and it returns the minimum-norm least-squares solution (with a warning).
-@parametrize_with_checks(
+@with_slow_marks(parametrize_with_checks(
     [
         HamiltonianRegressor(), VectorFieldRegressor(), DerivativeTransformer(dt=0.1),
         HamiltonianSearchCV(dt=0.1),
@@ -85,9 +111,22 @@ def expected_failed_checks(estimator):
     ],
     expected_failed_checks=expected_failed_checks,
     xfail_strict=True,
-)
+))
 def test_sklearn_common_checks(estimator, check):
     check(estimator)
+
+
+@pytest.mark.parametrize("Regressor", [HamiltonianRegressor, VectorFieldRegressor])
+def test_sparse_fit_weights_equal_repeated_samples(Regressor):
+    """check_sample_weight_equivalence_on_dense_data's property, on a small sparse fit."""
+    X, y = hamiltonian_data(n_samples=40)
+    weights = np.random.default_rng(2).integers(0, 4, size=X.shape[0])
+    model = Regressor(degree=4, threshold=0.05)
+    weighted = clone(model).fit(X, y, sample_weight=weights)
+    repeated = clone(model).fit(np.repeat(X, weights, axis=0), np.repeat(y, weights, axis=0))
+    assert 0 < np.count_nonzero(weighted.coef_) < weighted.coef_.size  # the threshold acted
+    assert np.allclose(weighted.coef_, repeated.coef_, rtol=1e-7, atol=1e-9)
+    assert np.allclose(weighted.predict(X), repeated.predict(X), rtol=1e-7, atol=1e-9)
 
 
 def _messages(error):

@@ -139,7 +139,8 @@ def test_noisy_pendulum_reads_as_its_formula_and_rolls_out_better(noisy_pendulum
     assert sparse.n_terms_ == 2 < dense.n_terms_
     system = single_pendulum()
     t = np.arange(0, 20.0001, 0.01)
-    truth = system.solve(system.initial_state, t)
+    # RK4 at dt / 10: within 5e-11 of solve's default dt / 100, ten times faster.
+    truth = system.solve(system.initial_state, t, max_step=0.001)
 
     def error(model):
         Y = model.simulate(system.initial_state, t)
@@ -321,10 +322,14 @@ def test_to_sympy_gives_the_formula():
 @pytest.mark.parametrize("solver", ["lstsq", "normal", "iterative", "sketch"])
 @pytest.mark.parametrize("cls", [HamiltonianRegressor, VectorFieldRegressor])
 def test_one_assembly_path_equals_separate_fits(noisy_pendulum, cls, solver):
-    _, Xt = noisy_pendulum
+    # A fifth of the trajectories: the two ways must agree at any size, and
+    # these still give three supports per path (HamiltonianRegressor: 32, 30
+    # and 2 terms), in an eighth of the time of all 500.
+    Xt = noisy_pendulum[1][:100]
     estimator = cls(degree=6, solver=solver, **PENDULUM_SPACE)
     thresholds = [0.0, 1e-3, 0.03]
     models = fit_along_path(clone(estimator), Xt, thresholds)
+    assert len({model.n_terms_ for model in models}) == 3
     for threshold, model in zip(thresholds, models):
         alone = clone(estimator).set_params(threshold=threshold).fit(Xt)
         assert model.threshold == threshold

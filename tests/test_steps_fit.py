@@ -13,7 +13,9 @@ def henon_heiles_data():
     X = make_trajectories(system, 500, 2, 0.01, random_state=0)
     Xt = DerivativeTransformer(dt=0.01, method="finite_difference").fit_transform(X)
     t = np.arange(0, 20 + 1e-9, 0.01)
-    return system, Xt, t, system.solve(system.initial_state, t)
+    # RK4 at dt / 10: within 3e-13 (relative) of solve's default dt / 100 here,
+    # far below the errors compared with it (1e-6 and up), in a tenth of the 12 s.
+    return system, Xt, t, system.solve(system.initial_state, t, max_step=0.001)
 
 
 def max_error(Y, truth):
