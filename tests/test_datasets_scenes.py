@@ -10,6 +10,7 @@ from sk_hamiltonian.datasets import (
     SCENES,
     SYSTEMS,
     HamiltonianSystem,
+    coupled_pendula,
     damped_pendulum,
     double_pendulum,
     fput_chain,
@@ -17,6 +18,7 @@ from sk_hamiltonian.datasets import (
     make_trajectories,
     single_pendulum,
     toda_lattice,
+    torsion_pendulum,
 )
 
 BOUNDARIES = ["fixed", "periodic"]
@@ -153,6 +155,7 @@ def test_chain_evaluates_over_leading_axes(factory, boundary):
         toda_lattice(5, boundary="periodic"),
         double_pendulum(full_circle=True),
         double_pendulum(1.3, 0.7, 0.9, 1.2, 9.81, full_circle=True, momentum_bound=3.0),
+        torsion_pendulum(), coupled_pendula(0.5, 3.0),
     ],
     ids=repr,
 )
@@ -173,6 +176,8 @@ def test_vector_field_is_inverse_symplectic_gradient(system):
         toda_lattice(3, boundary="periodic"),
         toda_lattice(16),
         double_pendulum(full_circle=True),
+        torsion_pendulum(),
+        coupled_pendula(),
     ],
     ids=repr,
 )
@@ -373,7 +378,8 @@ def test_scenes_registry():
         "single_pendulum", "exponential", "henon_heiles", "cherry", "double_pendulum"
     }
     assert set(SCENES) == {
-        "damped_pendulum", "double_pendulum_full_circle", "fput_chain", "toda_lattice"
+        "coupled_pendula", "damped_pendulum", "double_pendulum_full_circle", "fput_chain",
+        "toda_lattice", "torsion_pendulum",
     }
     for name, factory in SCENES.items():
         system = factory()
@@ -406,6 +412,25 @@ def test_damped_pendulum_is_the_pendulum_with_friction():
     power = 0.2 * (Y[:, 0] / 1.5**2) ** 2
     lost = np.sum((power[1:] + power[:-1]) / 2 * np.diff(t))
     assert H[0] - H[-1] == pytest.approx(lost, rel=1e-4)
+
+
+@pytest.mark.parametrize("system", [torsion_pendulum(1.5, 3.0), coupled_pendula(0.7, 5.0)],
+                         ids=repr)
+def test_mixed_scenes_gradient_matches_finite_differences(system):
+    X = _points_in_domain(system, 5, seed=7)
+    h = 1e-6
+    numeric = np.stack([(system.hamiltonian(X + h * e) - system.hamiltonian(X - h * e)) / (2 * h)
+                        for e in np.eye(X.shape[1])], axis=1)
+    np.testing.assert_allclose(system.gradient(X), numeric, atol=1e-7)
+
+
+def test_mixed_scenes_match_their_formulas():
+    p, q = 0.7, -2.5
+    assert torsion_pendulum(1.5, 3.0).hamiltonian([p, q]) == pytest.approx(
+        p**2 / 2 + 1.5 * q**2 / 2 + 3.0 * (1 - np.cos(q)))
+    p1, p2, q1, q2 = 0.3, -0.4, 1.1, -0.6
+    assert coupled_pendula(0.7, 5.0).hamiltonian([p1, p2, q1, q2]) == pytest.approx(
+        (p1**2 + p2**2) / 2 + 5.0 * (2 - np.cos(q1) - np.cos(q2)) + 0.7 * (q1 - q2) ** 2 / 2)
 
 
 @pytest.mark.parametrize("damping", [0.0, -0.1, np.inf, "0.1"])

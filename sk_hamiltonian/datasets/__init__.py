@@ -2,7 +2,7 @@
 
 from ._chains import fput_chain, toda_lattice
 from ._paper import PAPER_DT, cherry, double_pendulum, exponential, henon_heiles, single_pendulum
-from ._pendula import damped_pendulum
+from ._pendula import coupled_pendula, damped_pendulum, torsion_pendulum
 from ._system import HamiltonianSystem
 from ._systems import SCENES, SYSTEMS, load_system
 from ._trajectories import make_trajectories
@@ -13,6 +13,7 @@ __all__ = [
     "SYSTEMS",
     "HamiltonianSystem",
     "cherry",
+    "coupled_pendula",
     "damped_pendulum",
     "double_pendulum",
     "exponential",
@@ -22,4 +23,5 @@ __all__ = [
     "make_trajectories",
     "single_pendulum",
     "toda_lattice",
+    "torsion_pendulum",
 ]

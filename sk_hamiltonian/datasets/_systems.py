@@ -9,7 +9,7 @@ import functools
 
 from ._chains import fput_chain, toda_lattice
 from ._paper import cherry, double_pendulum, exponential, henon_heiles, single_pendulum
-from ._pendula import damped_pendulum
+from ._pendula import coupled_pendula, damped_pendulum, torsion_pendulum
 
 
 #: The paper's five systems by name; values are the factories.
@@ -25,10 +25,12 @@ SYSTEMS = {
 #: Systems beyond the paper's, by name; values are the factories. Each builds
 #: a system of that name.
 SCENES = {
+    "coupled_pendula": coupled_pendula,
     "damped_pendulum": damped_pendulum,
     "double_pendulum_full_circle": functools.partial(double_pendulum, full_circle=True),
     "fput_chain": fput_chain,
     "toda_lattice": toda_lattice,
+    "torsion_pendulum": torsion_pendulum,
 }
 
 
@@ -41,8 +43,9 @@ def load_system(name, **params):
         A key of :data:`SYSTEMS`, the paper's systems: ``"single_pendulum"``,
         ``"exponential"``, ``"henon_heiles"``, ``"cherry"`` or
         ``"double_pendulum"``; or of :data:`SCENES`, systems beyond the paper:
-        ``"damped_pendulum"``, ``"double_pendulum_full_circle"``,
-        ``"fput_chain"`` or ``"toda_lattice"``.
+        ``"coupled_pendula"``, ``"damped_pendulum"``,
+        ``"double_pendulum_full_circle"``, ``"fput_chain"``, ``"toda_lattice"``
+        or ``"torsion_pendulum"``.
     **params
         Parameters passed to the factory, e.g. ``length`` for the single
         pendulum or ``n_particles`` for the chains.

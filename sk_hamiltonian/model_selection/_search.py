@@ -296,7 +296,7 @@ class HamiltonianSearchCV(BaseEstimator):
             for record in unit_records:
                 record.update(space=k, stage="screen")
             records.extend(unit_records)
-        kept = _kept_spaces(records, failures)
+        kept = _kept_spaces(records, failures, spaces)
         self._say(f"kept: {[spaces[k] for k in kept]}")
         # Stages 2 and 3: every layout and fit target in the kept spaces.
         pairs = list(itertools.product(denoise, fit_on))
@@ -553,8 +553,43 @@ def _unit(Xt, folds, spaces, fit_on, degrees, thresholds, damping, domain, denoi
     return records, finalist, failures
 
 
-def _kept_spaces(records, failures):
-    """The spaces whose screened candidates tie with the best (simplest first, at most MAX_SPACES)."""
+def _within(inner, outer):
+    """Whether every function of model space ``inner`` is one of ``outer`` (same variables).
+
+    A polynomial or periodic variable lies within a mixed one (the Fourier
+    terms of an angle of period ``2 pi`` are a mixed variable's), a
+    mechanical Hamiltonian within a general one, a separable one within a
+    non-separable one; other parameters must agree.
+    """
+    keys = (set(inner) | set(outer)) - {"periodic", "mixed", "momentum_degree", "separable"}
+    if any(inner.get(key) != outer.get(key) for key in keys):
+        return False
+    flags = {name: (np.asarray(space.get("periodic") or [], bool),
+                    np.asarray(space.get("mixed") or [], bool))
+             for name, space in (("inner", inner), ("outer", outer))}
+    size = max(f.size for pair in flags.values() for f in pair)
+    (p_in, m_in), (p_out, m_out) = [
+        tuple(np.resize(f, size) if f.size else np.zeros(size, bool) for f in pair)
+        for pair in flags.values()
+    ]
+    # Per variable: polynomial (neither), periodic, or mixed (both families).
+    if np.any(p_out & ~p_in) or np.any(p_in & ~p_out & ~m_out) or np.any(m_in & ~m_out):
+        return False
+    if np.any(~p_in & ~m_in & p_out):  # a polynomial variable is no angle
+        return False
+    degree_in, degree_out = inner.get("momentum_degree"), outer.get("momentum_degree")
+    if degree_out is not None and (degree_in is None or degree_in > degree_out):
+        return False
+    return bool(inner.get("separable", False) or not outer.get("separable", False))
+
+
+def _kept_spaces(records, failures, spaces):
+    """The spaces whose screened candidates tie with the best, the smallest of each nest.
+
+    A tied space is dropped when a space within it (:func:`_within`) ties
+    with as few terms: it adds only functions the data do not need. At most
+    :data:`MAX_SPACES` are kept, the smallest models first.
+    """
     if not records:
         raise ValueError(
             "No model space could be set up on the screening layout." + _reason(failures))
@@ -571,7 +606,10 @@ def _kept_spaces(records, failures):
         if flag:
             key = (record["n_terms"], record["size"], float(np.mean(record["errors"])))
             ranking[record["space"]] = min(ranking.get(record["space"], key), key)
-    return sorted(ranking, key=ranking.get)[:MAX_SPACES]
+    kept = [k for k in ranking
+            if not any(j != k and _within(spaces[j], spaces[k]) and ranking[j][0] <= ranking[k][0]
+                       for j in ranking)]
+    return sorted(kept, key=ranking.get)[:MAX_SPACES]
 
 
 def _cv_results(records, spaces, n_folds, damping):
