@@ -11,6 +11,7 @@ from sk_hamiltonian.datasets import (
     SYSTEMS,
     HamiltonianSystem,
     coupled_pendula,
+    double_well,
     damped_pendulum,
     double_pendulum,
     fput_chain,
@@ -178,6 +179,7 @@ def test_vector_field_is_inverse_symplectic_gradient(system):
         double_pendulum(full_circle=True),
         torsion_pendulum(),
         coupled_pendula(),
+        double_well(),
     ],
     ids=repr,
 )
@@ -378,8 +380,8 @@ def test_scenes_registry():
         "single_pendulum", "exponential", "henon_heiles", "cherry", "double_pendulum"
     }
     assert set(SCENES) == {
-        "coupled_pendula", "damped_pendulum", "double_pendulum_full_circle", "fput_chain",
-        "toda_lattice", "torsion_pendulum",
+        "coupled_pendula", "damped_pendulum", "double_pendulum_full_circle", "double_well",
+        "fput_chain", "toda_lattice", "torsion_pendulum",
     }
     for name, factory in SCENES.items():
         system = factory()
@@ -414,8 +416,9 @@ def test_damped_pendulum_is_the_pendulum_with_friction():
     assert H[0] - H[-1] == pytest.approx(lost, rel=1e-4)
 
 
-@pytest.mark.parametrize("system", [torsion_pendulum(1.5, 3.0), coupled_pendula(0.7, 5.0)],
-                         ids=repr)
+@pytest.mark.parametrize(
+    "system", [torsion_pendulum(1.5, 3.0), coupled_pendula(0.7, 5.0), double_well(0.5, 2.0)],
+    ids=repr)
 def test_mixed_scenes_gradient_matches_finite_differences(system):
     X = _points_in_domain(system, 5, seed=7)
     h = 1e-6

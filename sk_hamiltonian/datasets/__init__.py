@@ -2,6 +2,7 @@
 
 from ._chains import fput_chain, toda_lattice
 from ._paper import PAPER_DT, cherry, double_pendulum, exponential, henon_heiles, single_pendulum
+from ._oscillators import double_well
 from ._pendula import coupled_pendula, damped_pendulum, torsion_pendulum
 from ._system import HamiltonianSystem
 from ._systems import SCENES, SYSTEMS, load_system
@@ -16,6 +17,7 @@ __all__ = [
     "coupled_pendula",
     "damped_pendulum",
     "double_pendulum",
+    "double_well",
     "exponential",
     "fput_chain",
     "henon_heiles",

@@ -1,7 +1,8 @@
 """The known systems by name: the paper's five (:data:`SYSTEMS`) and the scenes beyond it (:data:`SCENES`).
 
 The systems themselves live in :mod:`._paper` (the paper's examples),
-:mod:`._pendula` (pendula beyond them) and :mod:`._chains` (lattices);
+:mod:`._pendula` and :mod:`._oscillators` (scenes beyond them) and
+:mod:`._chains` (lattices);
 :mod:`._system` defines what a system is.
 """
 
@@ -9,6 +10,7 @@ import functools
 
 from ._chains import fput_chain, toda_lattice
 from ._paper import cherry, double_pendulum, exponential, henon_heiles, single_pendulum
+from ._oscillators import double_well
 from ._pendula import coupled_pendula, damped_pendulum, torsion_pendulum
 
 
@@ -27,6 +29,7 @@ SYSTEMS = {
 SCENES = {
     "coupled_pendula": coupled_pendula,
     "damped_pendulum": damped_pendulum,
+    "double_well": double_well,
     "double_pendulum_full_circle": functools.partial(double_pendulum, full_circle=True),
     "fput_chain": fput_chain,
     "toda_lattice": toda_lattice,
@@ -44,7 +47,7 @@ def load_system(name, **params):
         ``"exponential"``, ``"henon_heiles"``, ``"cherry"`` or
         ``"double_pendulum"``; or of :data:`SCENES`, systems beyond the paper:
         ``"coupled_pendula"``, ``"damped_pendulum"``,
-        ``"double_pendulum_full_circle"``, ``"fput_chain"``, ``"toda_lattice"``
+        ``"double_pendulum_full_circle"``, ``"double_well"``, ``"fput_chain"``, ``"toda_lattice"``
         or ``"torsion_pendulum"``.
     **params
         Parameters passed to the factory, e.g. ``length`` for the single

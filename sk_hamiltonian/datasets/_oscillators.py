@@ -1,0 +1,51 @@
+"""Oscillators beyond the paper's: a particle in a double well."""
+
+import numbers
+
+import numpy as np
+
+from ._system import HamiltonianSystem, _split
+
+
+def double_well(stiffness=1.0, quartic=1.0):
+    """A particle in a double-well potential (an undamped Duffing oscillator), a scene beyond the paper.
+
+    ``H(p, q) = p**2 / 2 - a q**2 / 2 + b q**4 / 4``: three monomials, with
+    wells at ``q = +-sqrt(a / b)`` and the separatrix at ``H = 0``.
+
+    Parameters
+    ----------
+    stiffness : float, default=1.0
+        ``a > 0``, the (negative) stiffness at the top of the barrier.
+    quartic : float, default=1.0
+        ``b > 0``, the quartic stiffening.
+
+    Returns
+    -------
+    system : HamiltonianSystem
+        Domain ``(-1.5, 1.5) x (-2, 2)``, ``u0* = (0.3, 1.2)``, no
+        ``paper_settings``.
+
+    Examples
+    --------
+    >>> from sk_hamiltonian.datasets import double_well
+    >>> float(double_well().hamiltonian([0.0, 1.0]))  # the bottom of a well
+    -0.25
+    """
+    for name, value in (("stiffness", stiffness), ("quartic", quartic)):
+        if not (isinstance(value, numbers.Real) and 0 < value < np.inf):
+            raise ValueError(f"{name} must be a positive finite number, got {value!r}.")
+
+    def hamiltonian(X):
+        X = np.asarray(X, dtype=float)
+        p, q = X[..., 0], X[..., 1]
+        return p**2 / 2 - stiffness * q**2 / 2 + quartic * q**4 / 4
+
+    def gradient(X):
+        p, q = _split(X)
+        return np.concatenate([p, -stiffness * q + quartic * q**3], axis=-1)
+
+    return HamiltonianSystem(
+        "double_well", hamiltonian, gradient, domain=[[-1.5, 1.5], [-2.0, 2.0]],
+        initial_state=[0.3, 1.2], params=dict(stiffness=stiffness, quartic=quartic),
+    )
