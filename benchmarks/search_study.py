@@ -1,0 +1,315 @@
+"""The default search against the best model in its own grid, the old default and PySINDy.
+
+For each scene and data seed:
+
+``search``
+    :class:`~sk_hamiltonian.model_selection.HamiltonianSearchCV` with its
+    defaults (5 folds of whole trajectories, shuffled by the seed): its
+    pick, the terms it keeps, its time, and every finalist's error.
+``oracle``
+    Every candidate the search evaluated (its ``cv_results_``), refitted on
+    all the data and judged by the truth: the best of them is "the grid's
+    best". It is chosen by looking at the truth, which no search can do.
+``paper-grid``
+    The command's old default (``--paper-grid``): a GridSearchCV over
+    de-noising Q in (fd, 3, 5, 8) and degree n in (4, 6, 8, 10) in the
+    polynomial space, the same folds, refit = best mean score; timed in the
+    same process as the search, so that their ratio is the budget's measure.
+``sindy``, ``sindy-weak``
+    PySINDy 2 at its best and honestly cross-validated (the scene's library
+    chosen as an expert would, smoothing window and threshold by
+    cross-validation on held-out trajectories, never on the truth; bagging),
+    strong and weak form (``benchmarks/sindy_anchor.py``). Skipped with a
+    note when PySINDy is not importable.
+
+The error of a model is the *fresh-state error*: the median over 10 initial
+states drawn uniformly from the system's domain (the distribution the data's
+initial states come from; one fixed set per scene) of the relative state error
+``||x~(T) - x(T)|| / ||x(T)||`` at ``T = 20`` (angle differences taken the short
+way round for the pendula), each model simulated with its own default
+integrator and step, the truth by RK4 with steps of 1e-3.
+
+Run::
+
+    python benchmarks/search_study.py                       # every scene, seeds 0-4
+    python benchmarks/search_study.py --scenes pendulum --seeds 0 1
+    python benchmarks/search_study.py --methods search oracle paper-grid
+    python benchmarks/search_study.py --report              # tables from the saved rows
+
+Each (scene, seed, method) is saved in ``--output`` (default
+``benchmarks/results/search_study``) as it finishes, and reused by later runs;
+``--report`` prints the tables and writes ``search_study.csv`` and the chart.
+"""
+
+import argparse
+import json
+import math
+import os
+import pickle
+import sys
+import time
+import warnings
+from pathlib import Path
+
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
+
+import numpy as np  # noqa: E402
+from sklearn.base import clone  # noqa: E402
+from sklearn.model_selection import GridSearchCV, KFold  # noqa: E402
+from sklearn.pipeline import Pipeline  # noqa: E402
+
+from sk_hamiltonian import DerivativeTransformer, HamiltonianRegressor  # noqa: E402
+from sk_hamiltonian.datasets import (  # noqa: E402
+    double_well,
+    henon_heiles,
+    make_trajectories,
+    single_pendulum,
+    torsion_pendulum,
+)
+from sk_hamiltonian.inspection import format_hamiltonian  # noqa: E402
+from sk_hamiltonian.model_selection import HamiltonianSearchCV  # noqa: E402
+
+HERE = Path(__file__).resolve().parent
+T_END = 20.0
+N_FRESH = 10
+FOLDS = 5
+SCENES = {
+    "pendulum": dict(system=single_pendulum, n_trajectories=500, n_intervals=40, dt=0.01,
+                     noise=0.08, angles=[1], terms={"p^2", "cos(q)"},
+                     sindy=dict(poly_degree=2, fourier=1, angles=[1])),
+    "henon_heiles": dict(system=henon_heiles, n_trajectories=300, n_intervals=40, dt=0.05,
+                         noise=0.02, angles=[],
+                         terms={"p1^2", "p2^2", "q1^2", "q2^2", "q1^2*q2", "q2^3"},
+                         sindy=dict(poly_degree=3)),
+    "torsion_pendulum": dict(system=torsion_pendulum, n_trajectories=300, n_intervals=40,
+                             dt=0.02, noise=0.05, angles=[],
+                             terms={"p^2", "q^2", "cos(q)"},
+                             sindy=dict(poly_degree=2, fourier=1, angles=[1], mixed=True)),
+    "double_well": dict(system=double_well, n_trajectories=300, n_intervals=40, dt=0.05,
+                        noise=0.05, angles=[], terms={"p^2", "q^2", "q^4"},
+                        sindy=dict(poly_degree=4)),
+}
+PAPER_GRID = [
+    {"derivativetransformer__method": ["finite_difference"],
+     "hamiltonianregressor__degree": [4, 6, 8, 10]},
+    {"derivativetransformer__method": ["polynomial"], "derivativetransformer__degree": [3, 5, 8],
+     "hamiltonianregressor__degree": [4, 6, 8, 10]},
+]
+METHODS = ("search", "oracle", "paper-grid", "sindy", "sindy-weak")
+
+
+def pipeline(dt):
+    return Pipeline([("derivativetransformer", DerivativeTransformer(dt=dt)),
+                     ("hamiltonianregressor", HamiltonianRegressor())])
+
+
+def scene_data(name, seed):
+    cfg = SCENES[name]
+    system = cfg["system"]()
+    X = make_trajectories(system, cfg["n_trajectories"], cfg["n_intervals"], cfg["dt"],
+                          noise=cfg["noise"], random_state=seed)
+    return cfg, system, X, KFold(FOLDS, shuffle=True, random_state=seed)
+
+
+def fresh_states(system):
+    """One fixed set of initial states per scene, uniform in the domain, and the truth at T."""
+    rng = np.random.default_rng(12345)
+    x0 = rng.uniform(system.domain[:, 0], system.domain[:, 1],
+                     size=(N_FRESH, system.domain.shape[0]))
+    truth = system.solve(x0, np.array([0.0, T_END]), max_step=1e-3)[:, -1]
+    return x0, truth
+
+
+def fresh_error(simulate, x0, truth, angles):
+    """Median relative state error at T over the fresh states (inf where a rollout fails)."""
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            Y = np.asarray(simulate(x0))
+    except Exception:  # noqa: BLE001 -- a model that cannot be simulated fails
+        return math.inf
+    d = Y - truth
+    if angles:
+        d[:, angles] = (d[:, angles] + np.pi) % (2 * np.pi) - np.pi
+    with np.errstate(invalid="ignore", over="ignore"):
+        e = np.linalg.norm(d, axis=1) / np.linalg.norm(truth, axis=1)
+    return float(np.median(np.where(np.isfinite(e), e, np.inf)))
+
+
+def model_error(model, x0, truth, angles):
+    return fresh_error(lambda x: model.simulate(x, [0.0, T_END], on_failure="nan")[:, -1],
+                       x0, truth, angles)
+
+
+def run_search(name, seed):
+    cfg, system, X, cv = scene_data(name, seed)
+    x0, truth = fresh_states(system)
+    start = time.process_time()
+    search = HamiltonianSearchCV(dt=cfg["dt"], cv=cv).fit(X)
+    seconds = time.process_time() - start
+    r = search.cv_results_
+    model = search.best_estimator_[-1]
+    finalists = np.flatnonzero(r["stage"] == "finalist")
+    finalist_errors = {}
+    for i in finalists:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            refit = clone(pipeline(cfg["dt"])).set_params(**r["params"][i]).fit(X)
+        finalist_errors[int(i)] = model_error(refit[-1], x0, truth, cfg["angles"])
+    from sk_hamiltonian.inspection import hamiltonian_terms
+
+    kept = {term.text for term in hamiltonian_terms(model)}
+    return dict(
+        seconds=seconds, error=model_error(model, x0, truth, cfg["angles"]),
+        params=search.best_params_, n_terms=int(model.n_terms_),
+        formula=format_hamiltonian(model), exact_support=kept == cfg["terms"],
+        kept_spaces=search.kept_spaces_, finalist_errors=finalist_errors,
+        cv_results={k: v for k, v in r.items() if not k.startswith("param_")},
+    )
+
+
+def run_oracle(name, seed, search_row):
+    """The truth's best among the candidates the search evaluated."""
+    from sk_hamiltonian.model_selection._fold_problems import FoldProblems
+
+    cfg, system, X, _ = scene_data(name, seed)
+    x0, truth = fresh_states(system)
+    groups = {}
+    for params in search_row["cv_results"]["params"]:
+        space = {k.split("__", 1)[1]: v for k, v in params.items()
+                 if k.startswith("hamiltonianregressor__")
+                 and k.split("__", 1)[1] not in ("degree", "threshold")}
+        layout = (params["derivativetransformer__method"],
+                  params.get("derivativetransformer__degree"))
+        groups.setdefault((layout, json.dumps(space, sort_keys=True)), []).append(params)
+    best = dict(error=math.inf)
+    errors = []
+    for ((method, Q), space), candidates in groups.items():
+        transformer = DerivativeTransformer(dt=cfg["dt"], method=method,
+                                            **({} if Q is None else {"degree": Q}))
+        Xt = transformer.fit_transform(X)
+        largest = max(p["hamiltonianregressor__degree"] for p in candidates)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            problems = FoldProblems(json.loads(space), Xt, [np.arange(len(X))], largest)
+        for params in candidates:
+            n = params["hamiltonianregressor__degree"]
+            threshold = params["hamiltonianregressor__threshold"]
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                _, solution = problems.solve(n, threshold)
+                model = problems.fitted(n, threshold, solution)
+            error = model_error(model, x0, truth, cfg["angles"])
+            errors.append(error)
+            if error < best["error"]:
+                best = dict(error=error, params=params, n_terms=int(model.n_terms_),
+                            formula=format_hamiltonian(model))
+    return dict(**best, n_candidates=len(errors), errors=errors)
+
+
+def run_paper_grid(name, seed):
+    cfg, system, X, cv = scene_data(name, seed)
+    x0, truth = fresh_states(system)
+    start = time.process_time()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        grid = GridSearchCV(pipeline(cfg["dt"]), PAPER_GRID, cv=cv).fit(X)
+    seconds = time.process_time() - start
+    model = grid.best_estimator_[-1]
+    return dict(seconds=seconds, error=model_error(model, x0, truth, cfg["angles"]),
+                params=grid.best_params_, n_terms=int(model.n_terms_),
+                formula=format_hamiltonian(model))
+
+
+def run_sindy(name, seed, weak):
+    try:
+        sys.path.insert(0, str(HERE))
+        from sindy_anchor import fit_sindy_cv
+    except ImportError as error:
+        return dict(skipped=f"PySINDy anchor not importable ({error})")
+    cfg, system, X, cv = scene_data(name, seed)
+    x0, truth = fresh_states(system)
+    folds = [test for _, test in cv.split(X)]
+    anchor = fit_sindy_cv(X, cfg["dt"], library=cfg["sindy"], folds=folds, weak=weak,
+                          seed=seed)
+    t = np.linspace(0.0, T_END, int(round(T_END / cfg["dt"])) + 1)
+    error = fresh_error(lambda x: anchor.simulate(x, t)[:, -1], x0, truth, cfg["angles"])
+    return dict(seconds=anchor.fit_time, error=error, n_terms=int(anchor.n_terms),
+                params=getattr(anchor, "params", {}))
+
+
+def compute(name, seed, method, output):
+    path = output / f"{name}_{seed}_{method}.pkl"
+    if path.exists():
+        return pickle.loads(path.read_bytes())
+    if method == "search":
+        row = run_search(name, seed)
+    elif method == "oracle":
+        row = run_oracle(name, seed, compute(name, seed, "search", output))
+    elif method == "paper-grid":
+        row = run_paper_grid(name, seed)
+    else:
+        row = run_sindy(name, seed, weak=method == "sindy-weak")
+    path.write_bytes(pickle.dumps(row))
+    summary = {k: v for k, v in row.items() if k in ("seconds", "error", "n_terms", "formula",
+                                                       "skipped", "exact_support")}
+    print(f"{name} seed {seed} {method}: {summary}", flush=True)
+    return row
+
+
+def geometric_mean(values):
+    values = np.asarray(values, dtype=float)
+    return float(np.exp(np.mean(np.log(values)))) if np.all(np.isfinite(values)) else math.inf
+
+
+def report(scenes, seeds, output):
+    import csv
+
+    rows = []
+    print(f"{'scene':18s} {'method':11s} {'geo. mean error':>15s} {'per seed':40s} {'terms':>10s}"
+          f" {'CPU s':>8s}")
+    for name in scenes:
+        for method in METHODS:
+            results = [output / f"{name}_{seed}_{method}.pkl" for seed in seeds]
+            results = [pickle.loads(p.read_bytes()) for p in results if p.exists()]
+            results = [r for r in results if "skipped" not in r]
+            if not results:
+                continue
+            errors = [r["error"] for r in results]
+            terms = [r.get("n_terms") for r in results]
+            seconds = [r.get("seconds", math.nan) for r in results]
+            print(f"{name:18s} {method:11s} {geometric_mean(errors):15.4f} "
+                  f"{' '.join(f'{e:.3g}' for e in errors):40s} "
+                  f"{'/'.join(str(t) for t in terms):>10s} {np.median(seconds):8.1f}")
+            for seed, r in zip(seeds, results):
+                rows.append(dict(scene=name, method=method, seed=seed, error=r["error"],
+                                 n_terms=r.get("n_terms"), cpu_seconds=r.get("seconds"),
+                                 exact_support=r.get("exact_support", ""),
+                                 formula=r.get("formula", "")))
+    if rows:
+        with open(output / "search_study.csv", "w", newline="") as handle:
+            writer = csv.DictWriter(handle, fieldnames=list(rows[0]))
+            writer.writeheader()
+            writer.writerows(rows)
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--scenes", nargs="+", default=list(SCENES), choices=list(SCENES))
+    parser.add_argument("--seeds", nargs="+", type=int, default=[0, 1, 2, 3, 4])
+    parser.add_argument("--methods", nargs="+", default=list(METHODS), choices=METHODS)
+    parser.add_argument("--output", type=Path, default=HERE / "results" / "search_study")
+    parser.add_argument("--report", action="store_true", help="only print the saved rows")
+    args = parser.parse_args(argv)
+    args.output.mkdir(parents=True, exist_ok=True)
+    if not args.report:
+        for name in args.scenes:
+            for seed in args.seeds:
+                for method in args.methods:
+                    compute(name, seed, method, args.output)
+    report(args.scenes, args.seeds, args.output)
+
+
+if __name__ == "__main__":
+    main()
