@@ -292,7 +292,9 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
     def _training_data(self, X, y, sample_weight, reset=True):
         """Validate the input and gather what the fit needs."""
         if not is_trajectory_container(X):
-            X, y = validate_data(self, X, y, multi_output=True, y_numeric=True, reset=reset)
+            # float64 throughout: one dtype for every fitted array (and model file).
+            X, y = validate_data(self, X, y, multi_output=True, y_numeric=True, reset=reset,
+                                 dtype=np.float64)
             weight = None if sample_weight is None else _check_sample_weight(sample_weight, X)
             return TrainingData(X, y, weight)
         if y is not None:
@@ -305,7 +307,7 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
         lengths = [S.shape[0] for S in states]
         X2, y2 = validate_data(
             self, np.concatenate(states), np.concatenate(derivatives), multi_output=True,
-            y_numeric=True, reset=reset,
+            y_numeric=True, reset=reset, dtype=np.float64,
         )
         trajectory_weight = weight = None
         if sample_weight is not None:
@@ -369,7 +371,7 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
                     f"Rescale the variable(s) to units in which they span about 1."
                 )
             return domain
-        domain = check_array(self.domain, input_name="domain", ensure_2d=False)
+        domain = check_array(self.domain, input_name="domain", ensure_2d=False, dtype=np.float64)
         if domain.shape != (n_states, 2) or np.any(domain[:, 1] <= domain[:, 0]):
             raise ValueError(
                 f"domain must have shape ({n_states}, 2) with one (low, high) row "
