@@ -788,3 +788,37 @@ def test_structured_mutations_are_refused_within_bounds(valid, monkeypatch, muta
     # memory stays that of a small model.
     assert read <= legit, (mutation, read, legit)
     assert peak < 4 * 2**20, (mutation, peak)
+
+
+@pytest.mark.parametrize("cls,n_states,degree", [
+    (HamiltonianRegressor, 4, 8), (VectorFieldRegressor, 4, 8), (HamiltonianRegressor, 8, 4),
+])
+def test_loading_costs_a_first_prediction_and_a_few_times_the_arrays(cls, n_states, degree,
+                                                                     monkeypatch):
+    import tracemalloc
+
+    import sk_hamiltonian.io as model_io
+
+    rng = np.random.default_rng(0)
+    X = rng.uniform(-1, 1, size=(1000, n_states))
+    model = cls(degree=degree).fit(X, rng.normal(size=X.shape))
+    buffer = io.BytesIO()
+    save(model, buffer)
+    data = buffer.getvalue()
+    arrays = sum(len(v) for k, v in members(data).items() if k != "manifest.json")
+
+    def peak(action):
+        tracemalloc.start()
+        try:
+            action()
+            return tracemalloc.get_traced_memory()[1]
+        finally:
+            tracemalloc.stop()
+
+    loading = peak(lambda: load(io.BytesIO(data)))
+    # What any use of the model costs: the first prediction of one state, on
+    # a model loaded without the probes of its dynamics.
+    monkeypatch.setattr(model_io, "check_dynamics", lambda *args: None)
+    fresh = load(io.BytesIO(data))
+    predicting = peak(lambda: fresh.predict(X[:1]))
+    assert loading <= predicting + 6 * arrays + 2**18, (loading, predicting, arrays)
