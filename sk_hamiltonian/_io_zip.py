@@ -1,15 +1,21 @@
 """The container of a model file: a zip of one JSON manifest and ``.npy`` arrays.
 
 Reading never trusts the file: member names are checked against a fixed
-pattern before anything is read, every size is checked before the bytes are
-read (and reading stops at the declared size, whatever the compressed stream
-says), and arrays are parsed with ``allow_pickle=False`` after their header
-has been checked against the manifest.
+pattern before anything is read, every member must be referred to exactly
+once by the manifest, a member's size must fit the shape and dtype its
+reference declares before its bytes are read (and reading stops at the
+declared size, whatever the compressed stream says), and arrays are parsed
+with ``allow_pickle=False`` after their header has been checked against the
+manifest. Writing to a path is atomic (:func:`write_container`).
 """
 
+import contextlib
 import io
 import json
+import os
 import re
+import secrets
+import stat
 import zipfile
 import zlib
 
@@ -29,6 +35,8 @@ MAX_ARRAY_BYTES = 256 * 2**20
 MAX_TOTAL_BYTES = 1024 * 2**20
 MAX_MEMBERS = 10_000
 MAX_JSON_DEPTH = 32
+# Longest .npy header read: numpy writes about 128 bytes for a model's arrays.
+MAX_HEADER_BYTES = 4096
 # Array element types a model holds: booleans, integers, floats.
 ARRAY_KINDS = "biuf"
 
@@ -44,14 +52,87 @@ class ModelFileError(ValueError):
 
 
 def write_container(path, manifest, arrays):
-    """Write ``manifest`` (a JSON-able dict) and ``arrays`` (name -> ndarray) to ``path``."""
+    """Write ``manifest`` (a JSON-able dict) and ``arrays`` (name -> ndarray) to ``path``.
+
+    A path is written atomically: into a new file beside it, flushed and
+    synced to disk, then renamed over it (``os.replace``). An error, an
+    interrupt or a full disk while writing removes that file and leaves an
+    existing ``path`` as it was; a killed process can leave only the hidden
+    ``.<name>.<random>.tmp`` beside it, never a partial ``path``. A file object
+    is written in place.
+    """
     text = json.dumps(manifest, indent=1, sort_keys=True, allow_nan=False)
-    with zipfile.ZipFile(path, "w", compression=zipfile.ZIP_DEFLATED) as archive:
+    if not (isinstance(path, (str, bytes)) or hasattr(path, "__fspath__")):
+        _write_zip(path, text, arrays)
+        return
+    target = os.path.realpath(os.fsdecode(os.fspath(path)))
+    stream, temporary = _create_beside(target)
+    try:
+        with stream:
+            _write_zip(stream, text, arrays)
+            stream.flush()
+            os.fsync(stream.fileno())
+        _copy_mode(target, temporary)
+        os.replace(temporary, target)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.unlink(temporary)
+        raise
+    _sync_folder(os.path.dirname(target))
+
+
+def _write_zip(stream, text, arrays):
+    with zipfile.ZipFile(stream, "w", compression=zipfile.ZIP_DEFLATED) as archive:
         archive.writestr(MANIFEST, text)
         for name, array in arrays.items():
-            buffer = io.BytesIO()
-            np.lib.format.write_array(buffer, np.ascontiguousarray(array), allow_pickle=False)
-            archive.writestr(name, buffer.getvalue())
+            _write_member(archive, name, array)
+
+
+def _write_member(archive, name, array):
+    with archive.open(name, "w", force_zip64=array.nbytes > 2**30) as member:
+        np.lib.format.write_array(member, np.ascontiguousarray(array), allow_pickle=False)
+
+
+def _create_beside(target):
+    """A new file, open for writing, in the folder of ``target``: ``(stream, its path)``."""
+    folder, base = os.path.split(target)
+    for _ in range(100):
+        temporary = os.path.join(folder, f".{base}.{secrets.token_hex(4)}.tmp")
+        try:
+            # 0o666 as open() would use, so that the umask applies as for any new file.
+            fd = os.open(temporary, os.O_WRONLY | os.O_CREAT | os.O_EXCL
+                         | getattr(os, "O_BINARY", 0), 0o666)
+        except FileExistsError:
+            continue
+        except OSError as error:
+            # Name the file the caller asked for, not the temporary one.
+            raise type(error)(error.errno, error.strerror, target) from None
+        return os.fdopen(fd, "wb"), temporary
+    raise FileExistsError(f"cannot create a temporary file beside {target}")
+
+
+def _copy_mode(target, temporary):
+    """Give the new file the permissions of the one it replaces (as overwriting kept them)."""
+    try:
+        mode = stat.S_IMODE(os.stat(target).st_mode)
+    except OSError:
+        return
+    with contextlib.suppress(OSError):
+        os.chmod(temporary, mode)
+
+
+def _sync_folder(folder):
+    """Make the rename durable (POSIX); where folders cannot be opened, nothing to do."""
+    try:
+        fd = os.open(folder, os.O_RDONLY)
+    except OSError:
+        return
+    try:
+        os.fsync(fd)
+    except OSError:
+        pass
+    finally:
+        os.close(fd)
 
 
 class Container:
@@ -85,6 +166,7 @@ class Container:
         except BaseException:
             self.archive.close()
             raise
+        self.referenced = set()
 
     def close(self):
         self.archive.close()
@@ -142,6 +224,52 @@ class Container:
             )
         return members
 
+    def check_references(self, value):
+        """Each array member referenced exactly once in ``value`` (parsed JSON), nothing else held.
+
+        Runs before any array is read, so that no member can be read twice
+        (one large array standing for many attributes) and no member lies in
+        the file unaccounted for.
+        """
+        names, stack = [], [value]
+        while stack:
+            item = stack.pop()
+            if isinstance(item, dict):
+                if isinstance(item.get("array"), str):
+                    names.append(item["array"])
+                stack.extend(item.values())
+            elif isinstance(item, list):
+                stack.extend(item)
+        seen = set()
+        for name in names:
+            if name in seen:
+                self.fail(
+                    f"the manifest refers to member {name[:40]!r} more than once; each array "
+                    f"of a model file stands for one value. The file is refused."
+                )
+            if name not in self.members:
+                self.fail(f"the manifest refers to {name[:40]!r}, which the file does not hold.")
+            seen.add(name)
+        unreferenced = sorted(set(self.members) - seen - {MANIFEST})
+        if unreferenced:
+            self.fail(
+                f"the file holds {len(unreferenced)} member(s) the manifest does not refer to "
+                f"({', '.join(unreferenced[:3])}); the file is refused."
+            )
+
+    def expect(self, name, shape, dtype, what):
+        """Refuse, before reading it, a member larger than an array of ``shape`` and ``dtype``."""
+        info = self.members.get(name)
+        if info is None:
+            self.fail(f"the manifest refers to {name!r}, which the file does not hold.")
+        needed = _n_elements(shape) * np.dtype(dtype).itemsize
+        if not needed < info.file_size <= needed + MAX_HEADER_BYTES:
+            self.fail(
+                f"member {name!r} ({what}) holds {info.file_size} bytes, but an array of shape "
+                f"{tuple(shape)} and dtype {np.dtype(dtype)} takes {needed} (and a header); "
+                f"the file is refused before reading it."
+            )
+
     def read_bytes(self, name):
         """The bytes of member ``name``, never more than it declares."""
         info = self.members.get(name)
@@ -179,16 +307,24 @@ class Container:
     def _no_constant(self, name):
         self.fail(f"'manifest.json' holds {name}, which is not JSON; the file is corrupted.")
 
-    def read_array(self, name, shape, dtype):
-        """The array of member ``name``, checked to have ``shape`` and ``dtype``."""
+    def read_array(self, name, shape, dtype, what="an array"):
+        """The array of member ``name``, checked to have ``shape`` and ``dtype``.
+
+        Each member is read at most once, and only if its size fits ``shape``
+        and ``dtype``.
+        """
+        if name in self.referenced:
+            self.fail(f"member {name!r} is referred to more than once; the file is refused.")
+        self.expect(name, shape, dtype, what)
+        self.referenced.add(name)
         data = self.read_bytes(name)
         stream = io.BytesIO(data)
         try:
             version = np.lib.format.read_magic(stream)
-            if version == (1, 0):
-                header = np.lib.format.read_array_header_1_0(stream, max_header_size=10_000)
-            elif version == (2, 0):
-                header = np.lib.format.read_array_header_2_0(stream, max_header_size=10_000)
+            read_header = {(1, 0): np.lib.format.read_array_header_1_0,
+                           (2, 0): np.lib.format.read_array_header_2_0}.get(version)
+            if read_header is not None:
+                header = read_header(stream, max_header_size=MAX_HEADER_BYTES)
             else:
                 raise ValueError(f"unsupported .npy version {version}")
         except Exception as error:  # numpy parses the header as a Python literal

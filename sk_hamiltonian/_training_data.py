@@ -32,7 +32,9 @@ def training_data(estimator, X, y, sample_weight, reset=True):
     data : TrainingData
     """
     if not is_trajectory_container(X):
-        X, y = validate_data(estimator, X, y, multi_output=True, y_numeric=True, reset=reset)
+        # float64 throughout: one dtype for every fitted array (and model file).
+        X, y = validate_data(estimator, X, y, multi_output=True, y_numeric=True, reset=reset,
+                             dtype=np.float64)
         weight = None if sample_weight is None else _check_sample_weight(sample_weight, X)
         return TrainingData(X, y, weight)
     if y is not None:
@@ -45,7 +47,7 @@ def training_data(estimator, X, y, sample_weight, reset=True):
     lengths = [S.shape[0] for S in states]
     X2, y2 = validate_data(
         estimator, np.concatenate(states), np.concatenate(derivatives), multi_output=True,
-        y_numeric=True, reset=reset,
+        y_numeric=True, reset=reset, dtype=np.float64,
     )
     trajectory_weight = weight = None
     if sample_weight is not None:

@@ -14,6 +14,7 @@ load such files only from sources you trust.
 """
 
 import datetime
+import math
 import platform
 
 import numpy as np
@@ -25,17 +26,14 @@ from ._derivatives import DerivativeTransformer
 from ._hamiltonian import HamiltonianRegressor
 from ._io_schema import (
     ATTRIBUTE_NAME,
-    PRIVATE_STATE,
-    REGRESSOR_ATTRIBUTES,
-    REGRESSOR_REQUIRED,
-    TRANSFORMER_ATTRIBUTES,
-    TRANSFORMER_REQUIRED,
-    Encoder,
-    check_attributes,
+    MODELS,
+    check_dynamics,
     check_regressor,
     check_transformer,
-    decode,
+    fitted_values,
 )
+from ._io_text import printable
+from ._io_values import Encoder, decode
 from ._io_zip import Container, ModelFileError, write_container
 from ._vector_field import VectorFieldRegressor
 
@@ -43,8 +41,9 @@ __all__ = ["ModelFileError", "load", "read_manifest", "save", "SKOPS_TRUSTED"]
 
 #: The ``format`` entry of every manifest.
 FORMAT = "sk_hamiltonian.model"
-#: The format version this module writes, and the oldest it reads.
-FORMAT_VERSION = 1
+#: The format version this module writes, and the oldest it reads. Format 2
+#: writes lists, tuples and numpy scalars exactly (see :mod:`._io_values`).
+FORMAT_VERSION = 2
 OLDEST_FORMAT_VERSION = 1
 #: The only classes a model file may name.
 ESTIMATORS = {
@@ -68,6 +67,11 @@ SKOPS_TRUSTED = [
 ]
 # Pipelines inside pipelines: a few levels are plenty.
 MAX_NESTING = 4
+# Estimators in one file, pipeline steps included.
+MAX_ESTIMATORS = 64
+# Elements of an array-valued parameter (domain, periodic, couplings):
+# a model over 10 000 state variables needs 20 000.
+MAX_PARAMETER_ELEMENTS = 2**16
 MANIFEST_KEYS = {"format", "format_version", "package_version", "written", "provenance", "model"}
 
 
@@ -85,7 +89,10 @@ def save(obj, path, *, provenance=None):
         these estimators is saved step by step.
     path : str or path-like or file object
         Where to write (``.skh`` is the customary extension). An existing
-        file is overwritten.
+        file is replaced atomically: the model is written to a new file in
+        the same folder, synced to disk, then renamed over it, so that an
+        error, an interrupt (Ctrl-C) or a full disk leaves the previous
+        file as it was (and no new file behind).
     provenance : dict, default=None
         Where the model comes from, kept in the manifest and shown by
         ``sk-hamiltonian show``: any JSON-serializable values, e.g.
@@ -95,8 +102,11 @@ def save(obj, path, *, provenance=None):
     ------
     TypeError
         If ``obj`` (or a pipeline step) is not one of the supported
-        estimators, a value cannot be stored without pickle, or
-        ``provenance`` is not a JSON-serializable dict.
+        estimators, a value cannot be stored without pickle, a fitted
+        attribute is not one the estimator has, or ``provenance`` is not a
+        JSON-serializable dict.
+    OSError
+        If the file cannot be written (an existing one is kept).
 
     See Also
     --------
@@ -176,10 +186,21 @@ def _spec(obj, encoder, what):
             f"{', '.join(ESTIMATORS)} and Pipelines of them.{hint}"
         )
     params = obj.get_params(deep=False)
+    model = MODELS[type(obj).__name__]
     fitted = {
-        k: v for k, v in vars(obj).items() if k.endswith("_") and ATTRIBUTE_NAME.match(k)
+        k: v for k, v in vars(obj).items()
+        if k.endswith("_") and not k.startswith("_") and not k.endswith("__")
     }
-    private = {k: getattr(obj, k) for k in PRIVATE_STATE if hasattr(obj, k) and fitted}
+    unknown = sorted(set(fitted) - set(model.fields))
+    if unknown:
+        # load() reads only the fitted values of its table: refuse now what
+        # could not be read back.
+        raise TypeError(
+            f"cannot save {what}: its attribute(s) {', '.join(unknown)} are not fitted values "
+            f"a {type(obj).__name__} has ({', '.join(sorted(model.fields))}); delete them "
+            f"first, and keep such notes in provenance."
+        )
+    private = {k: getattr(obj, k) for k in model.private if hasattr(obj, k) and fitted}
     return {
         "class": type(obj).__name__,
         "params": {k: encoder.encode(v, f"parameter {what}.{k}") for k, v in params.items()},
@@ -196,8 +217,13 @@ def load(path):
     Nothing in the file is executed: arrays are read with
     ``allow_pickle=False``, only the estimator classes of this package (and
     scikit-learn's ``Pipeline``) can be named, parameters pass the
-    estimators' own validation, fitted arrays must agree in shape, type and
-    value, and every declared size is checked before the bytes are read.
+    estimators' own validation, only the fitted values an estimator has are
+    read, each array once, and every size is checked against the model
+    (``powers_`` against ``degree`` and the state dimension, ``coef_``
+    against the terms) before anything large is read or built. The values
+    must agree with each other and with the parameters, and the time scales
+    with the learned dynamics. Memory stays within a small multiple of the
+    model's arrays; the table in :ref:`sharing` lists what is refused.
 
     Parameters
     ----------
@@ -238,6 +264,7 @@ def load(path):
     where = _name(path)
     with Container(path, where) as container:
         manifest = _checked_manifest(container)
+        _check_extent(manifest["model"], container)
         try:
             return _build(manifest["model"], container, "the model", 0)
         except ModelFileError:
@@ -314,6 +341,7 @@ def _checked_manifest(container):
     version, written_by = manifest.get("format_version"), manifest.get("package_version")
     if not isinstance(written_by, str) or len(written_by) > 40:
         container.fail("the manifest's package_version is not a version string.")
+    written_by = printable(written_by)  # quoted in messages below
     if not isinstance(version, int) or isinstance(version, bool):
         container.fail(f"the manifest's format_version {str(version)[:20]!r} is not an integer.")
     if version > FORMAT_VERSION:
@@ -343,6 +371,22 @@ def _checked_manifest(container):
     return manifest
 
 
+def _check_extent(model, container):
+    """Before anything is read: few enough estimators, each array member referenced once."""
+    count, stack = 0, [model]
+    while stack:
+        item = stack.pop()
+        if isinstance(item, dict):
+            count += "class" in item
+            stack.extend(item.values())
+        elif isinstance(item, list):
+            stack.extend(item)
+    if count > MAX_ESTIMATORS:
+        container.fail(f"the model names {count} estimators, more than a model file holds "
+                       f"({MAX_ESTIMATORS}); the file is refused.")
+    container.check_references(model)
+
+
 def _build(spec, container, what, depth):
     where = container.where
     if not isinstance(spec, dict) or not isinstance(spec.get("class"), str):
@@ -358,30 +402,26 @@ def _build(spec, container, what, depth):
     if set(spec) != {"class", "params", "fitted", "private"}:
         container.fail(f"{what} ({name}) has entries {sorted(spec)[:8]}; the file is corrupted.")
     cls = ESTIMATORS[name]
+    what = f"{what} ({name})"
     est = cls()
-    est.set_params(**_params(spec["params"], est, container, f"{what} ({name})"))
-    fitted = _values(spec["fitted"], container, f"{what} ({name})", fitted=True)
-    private = _values(spec["private"], container, f"{what} ({name})", fitted=False)
+    est.set_params(**_params(spec["params"], est, container, what))
+    fitted, private = spec["fitted"], spec["private"]
     if not fitted:
         if private:
-            container.fail(f"{what} ({name}) is unfitted but carries fitted state.")
+            container.fail(f"{what} is unfitted but carries fitted state.")
         return est
-    attributes = {**fitted, **private}
+    attributes = fitted_values(container, est, fitted, private, what)
     if cls is DerivativeTransformer:
-        check_attributes(where, name, attributes, TRANSFORMER_ATTRIBUTES, TRANSFORMER_REQUIRED)
-        check_transformer(where, est, attributes)
+        check_transformer(where, est, attributes, what)
     else:
-        required = REGRESSOR_REQUIRED + (("damping_",) if cls is HamiltonianRegressor else ())
-        check_attributes(where, name, attributes, REGRESSOR_ATTRIBUTES, required)
-        check_regressor(where, est, attributes)
+        check_regressor(where, est, attributes, what)
     if cls is not DerivativeTransformer and "support_" not in attributes:
         # Written before thresholds existed: every term was kept.
-        coef = attributes["coef_"]
-        attributes["support_"] = np.ones(coef.shape if coef.ndim == 2 else coef.shape[:1], bool)
+        attributes["support_"] = np.ones(attributes["coef_"].shape, bool)
     for key, value in attributes.items():
         setattr(est, key, value)
     if cls is not DerivativeTransformer:
-        _rebuild(est, container, f"{what} ({name})")
+        _rebuild(est, container, what)
     return est
 
 
@@ -399,7 +439,7 @@ def _params(encoded, est, container, what):
             f"sk_hamiltonian to load it."
         )
     # Parameters missing from an older file keep their defaults (today's behaviour).
-    params = {k: decode(v, container, f"parameter {k} of {what}") for k, v in encoded.items()}
+    params = _decoded(encoded, container, what)
     candidate = type(est)(**{**known, **params})
     try:
         candidate._validate_params()
@@ -410,35 +450,34 @@ def _params(encoded, est, container, what):
     return params
 
 
-def _values(encoded, container, what, fitted):
-    if not isinstance(encoded, dict):
-        container.fail(f"the fitted state of {what} is not a JSON object.")
-    out = {}
-    for key, value in encoded.items():
-        if fitted and not (isinstance(key, str) and ATTRIBUTE_NAME.match(key)
-                           and key.endswith("_")):
+def _decoded(encoded, container, what):
+    """Parameters from their manifest entries; their arrays small (MAX_PARAMETER_ELEMENTS)."""
+
+    def read_array(member, shape, dtype, name):
+        if math.prod(shape) > MAX_PARAMETER_ELEMENTS:
             container.fail(
-                f"{what} has a fitted attribute named {str(key)[:40]!r}; fitted attributes are "
-                f"lower-case names ending in '_'. The file is refused."
+                f"{name} declares an array of shape {tuple(shape)}, more than the "
+                f"{MAX_PARAMETER_ELEMENTS} elements a parameter holds; the file is refused."
             )
-        if not fitted and key not in PRIVATE_STATE:
-            container.fail(f"{what} has private state {str(key)[:40]!r}, which is not allowed.")
-        kind = "attribute" if fitted else "state"
-        out[key] = decode(value, container, f"{kind} {key} of {what}")
-    return out
+        return container.read_array(member, shape, dtype, name)
+
+    return {
+        k: decode(v, container.where, f"parameter {k} of {what}", read_array)
+        for k, v in encoded.items()
+    }
 
 
 def _rebuild(est, container, what):
-    """Recompute the private state (model space, separable parts) from the public."""
+    """Recompute the private state (model space, separable parts) from the public; probe it."""
     try:
         est._rebuild_fitted()
         est._partial = None
-        # A last check that the parts fit together: the field at the box centre.
-        value = est._vector_field(est.domain_.mean(axis=1)[None])
-    except (ValueError, TypeError, IndexError, KeyError, ArithmeticError) as error:
+        check_dynamics(container.where, est, what)
+    except ModelFileError:
+        raise
+    except (ValueError, TypeError, IndexError, KeyError, ArithmeticError,
+            np.linalg.LinAlgError) as error:
         container.fail(f"{what}: the fitted values do not form a model ({error}).")
-    if not np.isfinite(value).all():
-        container.fail(f"{what}: the model evaluates to non-finite values; the file is corrupted.")
 
 
 def _build_pipeline(spec, container, what, depth):
@@ -460,9 +499,7 @@ def _build_pipeline(spec, container, what, depth):
         steps.append((name, _build(step["model"], container, f"step {name!r}", depth + 1)))
     if not isinstance(spec["params"], dict):
         container.fail(f"the parameters of {what} (Pipeline) are not a JSON object.")
-    params = {
-        k: decode(v, container, f"parameter {k} of {what}") for k, v in spec["params"].items()
-    }
+    params = _decoded(spec["params"], container, f"{what} (Pipeline)")
     known = set(Pipeline([("x", None)]).get_params(deep=False)) - {"steps"}
     if set(params) - known or params.get("memory") is not None:
         container.fail(

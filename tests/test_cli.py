@@ -521,7 +521,7 @@ def test_cli_round_trip_fit_show_simulate(demo, tmp_path, capsys):
     low, high = model[-1].domain_[0]
     assert f"p: [{low:.6g}, {high:.6g}] (interval)" in shown
     assert f"n_terms_ = {model[-1].n_terms_}" in shown
-    assert "format 1, written by sk_hamiltonian 0.1.0" in shown
+    assert "format 2, written by sk_hamiltonian 0.1.0" in shown
     assert f"estimator: DerivativeTransformer(dt=0.01" in shown
 
     csv_path = tmp_path / "run.csv"

@@ -7,6 +7,7 @@ import warnings
 
 import numpy as np
 
+from .._io_text import escaping_output
 from ..exceptions import DomainWarning, SimulationError
 from ..io import ModelFileError, load, read_manifest
 from .datafiles import default_state_names
@@ -126,6 +127,7 @@ def _non_default_params(estimator):
     return f"{type(estimator).__name__}({', '.join(shown)})"
 
 
+@escaping_output  # the file's strings are data: no terminal escapes
 def show(argv):
     """``sk-hamiltonian show MODEL``: print the model file's contents."""
     args = show_parser().parse_args(argv)

@@ -208,7 +208,9 @@ def fit_domain(states, domain, periodic):
                 f"Rescale the variable(s) to units in which they span about 1."
             )
         return box
-    box = check_array(domain, input_name="domain", ensure_2d=False)
+    # float64 whatever was given (an integer box too): one dtype for every
+    # fitted array, which model files rely on.
+    box = check_array(domain, input_name="domain", ensure_2d=False, dtype=np.float64)
     if box.shape != (n_states, 2) or np.any(box[:, 1] <= box[:, 0]):
         raise ValueError(
             f"domain must have shape ({n_states}, 2) with one (low, high) row "
