@@ -175,7 +175,8 @@ class LibrarySpec:
         mixed = bool(library.get("mixed", False))
         if fourier is not None and (isinstance(fourier, bool)
                                     or not isinstance(fourier, (int, np.integer)) or fourier < 1):
-            raise ValueError(f"library['fourier'] must be None or an integer >= 1; got {fourier!r}.")
+            raise ValueError(
+                f"library['fourier'] must be None or an integer >= 1; got {fourier!r}.")
         if bool(angles) != (fourier is not None):
             raise ValueError("library needs both 'fourier' and 'angles' (the angle variables' "
                              f"indices), or neither; got {library!r}.")
@@ -238,9 +239,8 @@ class LibrarySpec:
 class LibraryFeatures:
     """The library's features, vectorized, in PySINDy's column order.
 
-    Each feature is a monomial times one trigonometric factor per angle;
-    powers and sines are tabulated once per call and gathered, so a batch of
-    states costs a few array operations. Built from a :class:`LibrarySpec`
+    Each feature is a monomial times one trigonometric factor per angle
+    (see :meth:`evaluator`). Built from a :class:`LibrarySpec`
     and matched column by column to the fitted PySINDy library's
     ``transform`` on ``check_states`` (a permutation, found numerically).
 
@@ -258,10 +258,9 @@ class LibraryFeatures:
         terms = spec.terms(n_states)
         self.n_states = n_states
         self.angles = np.asarray(spec.angles, dtype=int)
-        self.fourier = spec.fourier or 0
-        self.degree = spec.poly_degree
         self.powers = np.array([t[0] for t in terms], dtype=int).reshape(len(terms), n_states)
-        self.trig = np.array([t[1] for t in terms], dtype=int).reshape(len(terms), self.angles.size)
+        self.trig = np.array([t[1] for t in terms], dtype=int).reshape(len(terms),
+                                                                     self.angles.size)
         ours = self(check_states)
         theirs = np.asarray(library.transform(check_states))
         if theirs.shape != ours.shape:
