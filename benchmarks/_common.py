@@ -221,7 +221,7 @@ def make_data(scene, raw=False):
     return (system, Xt, elapsed, X) if raw else (system, Xt, elapsed)
 
 
-def sindy_library(ps, degree, fourier=None, periodic=None):
+def sindy_library(ps, degree, fourier=None, periodic=None, mixed=False):
     """PySINDy's feature library: polynomial, or polynomial in ``p`` times trigonometric in angles.
 
     Parameters
@@ -242,6 +242,12 @@ def sindy_library(ps, degree, fourier=None, periodic=None):
         the way the Fourier-mechanical space of our regressors holds its ``H``.
     periodic : array-like of bool or None
         Which variables are angles (needed with ``fourier``).
+    mixed : bool, default=False
+        With ``fourier``: also the polynomial of degree ``degree`` in *all*
+        variables, angles included, so that an angle can carry both kinds of
+        terms (a torsion pendulum, ``V = k q**2 / 2 - g cos q``). The features
+        are then that polynomial plus the products above with at least one
+        sine or cosine.
     """
     if fourier is None:
         return ps.PolynomialLibrary(degree=degree)
@@ -249,15 +255,23 @@ def sindy_library(ps, degree, fourier=None, periodic=None):
     angles = np.flatnonzero(periodic)
     libraries = [ps.PolynomialLibrary(degree=degree)] + [
         ps.FourierLibrary(n_frequencies=fourier) for _ in angles]
+    inputs = [np.flatnonzero(~periodic).tolist()] + [[a] for a in angles]
     # Every product of the polynomial library with a non-empty set of angle
     # libraries; the angle libraries alone are excluded (the polynomial
     # library's constant already makes them part of the products).
     tensors = [[1] + [int(b) for b in mask]
                for mask in itertools.product((0, 1), repeat=angles.size) if any(mask)]
+    excluded = list(range(1, 1 + angles.size))
+    if mixed:
+        # Library 0 is the polynomial in all variables, kept alone; the one in
+        # the momenta only enters the products (alone it would repeat columns).
+        libraries = [ps.PolynomialLibrary(degree=degree)] + libraries
+        inputs = [list(range(periodic.size))] + inputs
+        tensors = [[0] + row for row in tensors]
+        excluded = [1] + [k + 1 for k in excluded]
     return ps.GeneralizedLibrary(
-        libraries, tensor_array=tensors,
-        inputs_per_library=[np.flatnonzero(~periodic).tolist()] + [[a] for a in angles],
-        exclude_libraries=list(range(1, 1 + angles.size)),
+        libraries, tensor_array=tensors, inputs_per_library=inputs,
+        exclude_libraries=excluded,
     )
 
 
