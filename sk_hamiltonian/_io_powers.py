@@ -16,26 +16,33 @@ to ``powers_`` itself:
 
 The space is a lower set (lowering any magnitude keeps every constraint), so
 every element of it is reached from the zero row by such steps, and 1-3 hold
-exactly when the rows are the whole space.
+exactly when the rows are the whole space. A mixed variable's entry is a code
+(:mod:`sk_hamiltonian._space.mixed`): its Legendre degrees rise by one from
+zero, its Fourier codes by two from ``-1`` (cosines) and ``-2`` (sines), and
+a code's degree is its frequency.
 """
 
 import numpy as np
+
+from ._space.mixed import factor_degrees
 
 # Rows checked at a time, to bound the memory of the coupling test.
 BLOCK_ROWS = 8192
 
 
 def index_set_problem(powers, degree, periodic, *, momentum_degree=None, separable=False,
-                      max_interaction=None, couplings=None, include_constant=False):
+                      max_interaction=None, couplings=None, include_constant=False,
+                      mixed=None):
     """What keeps ``powers`` from being the index set of these parameters, or None.
 
     Parameters
     ----------
     powers : ndarray of shape (n_terms, n_states) of int64
         The multi-indices to check.
-    degree, periodic, momentum_degree, separable, max_interaction, couplings, include_constant
+    degree, periodic, momentum_degree, separable, max_interaction, couplings, include_constant, mixed
         As for :func:`sk_hamiltonian._space.index_set.index_set` (``couplings``
-        as tuples of variable indices, ``periodic`` a boolean array).
+        as tuples of variable indices, ``periodic`` and ``mixed`` boolean
+        arrays; None: no mixed variable).
 
     Returns
     -------
@@ -51,8 +58,9 @@ def index_set_problem(powers, degree, periodic, *, momentum_degree=None, separab
         # Every such space holds each degree 1..degree of some variable.
         return (f"degree={degree} needs at least {degree} basis functions, but powers_ has "
                 f"{n_terms}")
+    mixed = np.zeros(n_states, dtype=bool) if mixed is None else np.asarray(mixed, dtype=bool)
     space = _Space(n_states, degree, periodic, momentum_degree, separable, max_interaction,
-                   couplings, include_constant)
+                   couplings, include_constant, mixed)
     outside = space.first_outside(powers)
     if outside is not None:
         return f"powers_ holds {powers[outside].tolist()}, which these parameters exclude"
@@ -65,10 +73,16 @@ def index_set_problem(powers, degree, periodic, *, momentum_degree=None, separab
         return "powers_ lacks the constant term"
     rows = powers if has_zero else np.concatenate([zero, powers])
     for i in range(n_states):
-        for sign in (1, -1) if periodic[i] else (1,):
+        if mixed[i]:
+            # Legendre degrees up by one; from 0 to cos and sin; codes down by two.
+            steps = ((rows[:, i] >= 0, 1), (rows[:, i] == 0, -1), (rows[:, i] == 0, -2),
+                     (rows[:, i] < 0, -2))
+        else:
             # Raise |alpha_i| by one, in the direction of its sign (from 0: both).
-            raised = rows[rows[:, i] * sign >= 0].copy()
-            raised[:, i] += sign
+            steps = [(rows[:, i] * sign >= 0, sign) for sign in ((1, -1) if periodic[i] else (1,))]
+        for which, step in steps:
+            raised = rows[which].copy()
+            raised[:, i] += step
             raised = raised[space.contains(raised)]
             found = _contains(keys, raised)
             if not found.all():
@@ -81,11 +95,12 @@ class _Space:
     """Membership in the index set of the parameters, row by row."""
 
     def __init__(self, n_states, degree, periodic, momentum_degree, separable,
-                 max_interaction, couplings, include_constant):
+                 max_interaction, couplings, include_constant, mixed):
         self.degree, self.include_constant = degree, include_constant
         self.momentum_degree, self.separable = momentum_degree, separable
         self.max_interaction = max_interaction
-        self.fixed_sign = ~np.asarray(periodic, dtype=bool)
+        self.mixed = mixed
+        self.fixed_sign = ~np.asarray(periodic, dtype=bool) & ~mixed
         self.half = n_states // 2
         self.outside_groups = None
         if couplings is not None:
@@ -107,9 +122,10 @@ class _Space:
 
     def _contains(self, rows):
         # Entries beyond the degree first: np.abs of the most negative int64 is negative.
-        bounded = np.all((rows <= self.degree) & (rows >= -self.degree), axis=1)
+        lowest = np.where(self.mixed, -2 * self.degree, -self.degree)
+        bounded = np.all((rows <= self.degree) & (rows >= lowest), axis=1)
         rows = np.where(bounded[:, None], rows, 0)
-        magnitude = np.abs(rows)
+        magnitude = factor_degrees(rows, self.mixed)
         total = magnitude.sum(axis=1)
         support = magnitude > 0
         size = support.sum(axis=1)

@@ -108,6 +108,8 @@ REGRESSOR = {
     "feature_names_in_": Names(),
     "powers_": Array("int64", (("b", "n"),), None, "a 2-D integer array"),
     "periodic_": Array("bool", (("n",),), None, "a 1-D boolean array"),
+    # Absent from files of models fitted before mixed variables existed.
+    "mixed_": Array("bool", (("n",),), None, "a 1-D boolean array"),
     "domain_": Array("float64", (("n", 2),), _finite, "a finite 2-D float array", casts="iu"),
     "coef_": Array("float64", (("b",), ("b", "o")), _finite, "a finite float array"),
     "support_": Array("bool", like="coef_", text="a boolean array"),
@@ -355,6 +357,12 @@ def check_regressor(where, est, attributes, what):
              else np.asarray(est.periodic).astype(bool))
     need(given.shape == periodic.shape and np.array_equal(given, periodic),
          "periodic_ differs from the periodic parameter")
+    mixed = attributes.get("mixed_", np.zeros(n, dtype=bool))
+    given = (np.zeros(n, dtype=bool) if getattr(est, "mixed", None) is None
+             else np.asarray(est.mixed).astype(bool))
+    need(given.shape == mixed.shape and np.array_equal(given, mixed),
+         "mixed_ differs from the mixed parameter")
+    need(not np.any(mixed & periodic), "a variable is both periodic_ and mixed_")
     if est.domain is not None:
         given = np.asarray(est.domain, dtype=float)
         need(given.shape == domain.shape and np.array_equal(given, domain),
@@ -371,7 +379,7 @@ def check_regressor(where, est, attributes, what):
     problem = index_set_problem(
         powers, est.degree, periodic, momentum_degree=est.momentum_degree,
         separable=est.separable, max_interaction=est.max_interaction, couplings=couplings,
-        include_constant=est._include_constant,
+        include_constant=est._include_constant, mixed=mixed,
     )
     need(problem is None, f"{problem} (the index set of its parameters)")
     unknowns = coef.size + (n // 2 if name == "HamiltonianRegressor" else 0)

@@ -28,13 +28,17 @@ SPACES = [
     (6, 3, [False] * 6, {"separable": True, "max_interaction": 2}),
     (1, 7, [False], {}),
     (3, 4, [True, False, True], {"include_constant": True}),
+    # Mixed coordinates: Legendre and Fourier columns in one table.
+    (2, 5, [False, False], {"mixed": [False, True]}),
+    (4, 4, [False, False, True, False], {"mixed": [False, False, False, True],
+                                         "momentum_degree": 2}),
 ]
 
 
 def _space(n_states, degree, periodic, constraints):
     domain = np.column_stack([-1.5 * np.ones(n_states), np.linspace(1.0, 2.0, n_states)])
     powers = index_set(n_states, degree, periodic=np.array(periodic), **constraints)
-    return ModelSpace(domain, powers, np.array(periodic))
+    return ModelSpace(domain, powers, np.array(periodic), constraints.get("mixed"))
 
 
 def _states(space, n, seed=0):

@@ -99,19 +99,89 @@ def test_derivative_maps_give_the_gradient():
         np.testing.assert_allclose(values @ T.T.toarray(), gradients[:, i], atol=1e-10)
 
 
-@pytest.mark.parametrize("n_states", [3, 40])
-def test_compiled_kernels_agree_with_numpy(n_states):
-    pytest.importorskip("numba", reason="the compiled kernels need numba (extra 'fast')")
-    from sk_hamiltonian import config_context
+# The compiled kernels on mixed spaces: tests/test_kernels.py (its SPACES).
 
-    powers = index_set(2, 5, mixed=MIXED)
-    space = ModelSpace(DOMAIN, powers, mixed=MIXED)
-    X = np.random.default_rng(5).uniform(DOMAIN[:, 0], DOMAIN[:, 1], size=(n_states, 2))
-    coef = np.random.default_rng(6).normal(size=powers.shape[0])
-    results = []
-    for kernels in ("numpy", "numba"):
-        with config_context(kernels=kernels):
-            results.append((space.value_dot(X, coef), space.gradient_dot(X, coef),
-                            space.hessian_dot(X, coef)))
-    for numpy_result, compiled in zip(*results):
-        np.testing.assert_allclose(compiled, numpy_result, rtol=1e-12, atol=1e-12)
+
+# --------------------------------------------------------------- the regressors
+def _torsion_data(n=600, seed=0):
+    """States of the torsion pendulum H = p^2/2 + q^2/2 + 4 (1 - cos q) and their exact derivatives."""
+    from sk_hamiltonian.datasets import torsion_pendulum
+
+    system = torsion_pendulum()
+    X = np.random.default_rng(seed).uniform(-4, 4, size=(n, 2))
+    return system, X, system.vector_field(X)
+
+
+def test_a_mixed_hamiltonian_is_recovered_to_round_off():
+    from sk_hamiltonian import HamiltonianRegressor
+    from sk_hamiltonian.inspection import hamiltonian_terms
+
+    system, X, Y = _torsion_data()
+    model = HamiltonianRegressor(degree=4, mixed=[False, True], threshold=0.01).fit(X, Y)
+    terms = {t.text: t.coefficient for t in hamiltonian_terms(model)}
+    assert set(terms) == {"p^2", "q^2", "cos(q)"}
+    np.testing.assert_allclose([terms["p^2"], terms["q^2"], terms["cos(q)"]], [0.5, 0.5, -4.0],
+                               rtol=1e-12)
+    # Dense too: the space holds H exactly.
+    dense = HamiltonianRegressor(degree=5, mixed=[False, True]).fit(X, Y)
+    F = np.random.default_rng(1).uniform(-4, 4, size=(50, 2))
+    difference = dense.hamiltonian(F) - system.hamiltonian(F)
+    assert np.ptp(difference) < 1e-11
+    np.testing.assert_allclose(dense.predict(F), system.vector_field(F), atol=1e-11)
+
+
+def test_a_polynomial_or_periodic_space_cannot_hold_it():
+    from sk_hamiltonian import HamiltonianRegressor
+
+    system, X, Y = _torsion_data()
+    F = np.random.default_rng(1).uniform(-4, 4, size=(200, 2))
+    errors = {}
+    for name, params in (("polynomial", {}), ("periodic", dict(periodic=[False, True])),
+                         ("mixed", dict(mixed=[False, True]))):
+        model = HamiltonianRegressor(degree=5, **params).fit(X, Y)
+        errors[name] = np.std(model.hamiltonian(F) - system.hamiltonian(F))
+    assert errors["mixed"] < 1e-10 < 1e-3 < errors["polynomial"] < errors["periodic"]
+
+
+def test_avf_conserves_a_mixed_hamiltonian_to_round_off():
+    from sk_hamiltonian import HamiltonianRegressor
+
+    _, X, Y = _torsion_data()
+    rng = np.random.default_rng(2)
+    model = HamiltonianRegressor(degree=5, mixed=[False, True]).fit(X, Y + 0.01 * rng.normal(size=Y.shape))
+    t = np.linspace(0.0, 20.0, 201)
+    Z = model.simulate([0.5, 2.0], t, method="avf", max_step=0.1)
+    energy = model.hamiltonian(Z)
+    assert np.ptp(energy) < 1e-12 * max(1.0, np.abs(energy).max())
+    # RK4 at the same step drifts: the conservation is AVF's, not the scene's.
+    drift = np.ptp(model.hamiltonian(model.simulate([0.5, 2.0], t, method="rk4", max_step=0.1)))
+    assert drift > 100 * np.ptp(energy)
+
+
+def test_mixed_and_periodic_on_one_variable_is_refused():
+    from sk_hamiltonian import HamiltonianRegressor
+
+    _, X, Y = _torsion_data(50)
+    with pytest.raises(ValueError, match="both periodic and mixed"):
+        HamiltonianRegressor(periodic=[False, True], mixed=[False, True]).fit(X, Y)
+    with pytest.raises(ValueError, match="mixed must be None or an array of 2 booleans"):
+        HamiltonianRegressor(mixed=[True]).fit(X, Y)
+
+
+def test_a_mixed_model_file_round_trips(tmp_path):
+    from sk_hamiltonian import HamiltonianRegressor, ModelFileError, load, save
+
+    _, X, Y = _torsion_data()
+    for params in (dict(degree=4, mixed=[False, True], threshold=0.01),
+                   dict(degree=5, mixed=[True, True], momentum_degree=2)):
+        model = HamiltonianRegressor(**params).fit(X, Y)
+        save(model, tmp_path / "mixed.skh")
+        loaded = load(tmp_path / "mixed.skh")
+        np.testing.assert_array_equal(loaded.mixed_, model.mixed_)
+        np.testing.assert_array_equal(loaded.predict(X), model.predict(X))
+        assert loaded.get_params()["mixed"] == params["mixed"]
+    # A file whose mixed_ contradicts its parameter is refused.
+    model.mixed_ = np.array([False, True])
+    save(model, tmp_path / "wrong.skh")
+    with pytest.raises(ModelFileError, match="mixed_ differs from the mixed parameter"):
+        load(tmp_path / "wrong.skh")
