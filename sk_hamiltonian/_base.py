@@ -58,7 +58,7 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
         "separable": ["boolean"],
         "max_interaction": [Interval(Integral, 1, None, closed="left"), None],
         "couplings": ["array-like", None],
-        "fit_on": [StrOptions({"derivatives", "steps", "simpson"})],
+        "fit_on": [StrOptions({"derivatives", "steps", "simpson", "weak"})],
         "threshold": [Interval(Real, 0, None, closed="left")],
         "solver": [StrOptions({"auto", "lstsq", "normal", "iterative", "sketch"})],
         "verbose": ["verbose"],

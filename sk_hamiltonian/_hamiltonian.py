@@ -82,7 +82,7 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
         for a ring. Functions of one variable always enter. It combines with
         ``separable`` and ``max_interaction``. None: any variables may be
         coupled.
-    fit_on : {"derivatives", "steps", "simpson"}, default="derivatives"
+    fit_on : {"derivatives", "steps", "simpson", "weak"}, default="derivatives"
         What the model is fitted to. ``"derivatives"``: the paper's fit, the
         gradient against the estimated time derivatives. ``"steps"``: the
         observed steps ``x0 -> x1`` of the trajectories, so that the
@@ -98,7 +98,18 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
         derivative estimates, and exact to ``O(dt**4)``: ``H~`` approximates
         the true Hamiltonian, not a modified one, and :meth:`simulate` uses
         RK4 as after a derivative fit. Needs at least three samples per
-        trajectory. Both need the derivative layout as input.
+        trajectory. ``"weak"``: the weak form, windows of 21 consecutive
+        samples (a shorter trajectory is one window; windows overlap by three
+        quarters), each multiplied by a smooth bump ``phi`` that vanishes at
+        its ends and integrated by the trapezoid rule, so that
+        ``int phi J grad H~(x) dt`` matches ``-int phi' J x dt``. No
+        derivative or step difference enters, and the noise of the states
+        barely biases the fit (the bump's integral against its own
+        derivative vanishes); like Simpson's it learns ``H~`` itself, and
+        :meth:`simulate` uses RK4. Needs at least three samples per
+        trajectory. The last three need the derivative layout as input (its
+        states: raw with finite differences, smoothed with the polynomial
+        method).
     threshold : float, default=0.0
         Sparsity threshold. 0 fits every basis function (the paper's fit).
         A positive value runs sequentially thresholded least squares (STLSQ)
@@ -268,7 +279,8 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
         n_rows = data.n_rows(self.fit_on) * n_states
         n_unknowns = self._n_terms(n_states)
         if n_rows < n_unknowns:
-            what = {"steps": "observed steps", "simpson": "pairs of steps"}.get(
+            what = {"steps": "observed steps", "simpson": "pairs of steps",
+                    "weak": "weak-form windows"}.get(
                 self.fit_on, "samples")
             raise ValueError(
                 f"The data give {data.n_rows(self.fit_on)} {what}, that is {n_rows} "

@@ -13,6 +13,12 @@ from sklearn.utils.validation import _check_sample_weight, validate_data
 from ._space.legendre import gauss_on_unit
 from ._trajectories import is_trajectory_container, unpack_derivatives
 
+# The weak form's windows: samples per window, windows per window length
+# (the stride is the length over this), and the power of the test function.
+WEAK_WINDOW = 21
+WEAK_OVERLAP = 4
+WEAK_POWER = 4
+
 
 def training_data(estimator, X, y, sample_weight, reset=True):
     """Validate a regressor's input (``validate_data`` on ``estimator``) and gather what the fit needs.
@@ -193,8 +199,67 @@ class TrainingData:
                 f"fit_on='steps'."
             )
 
+    def windows(self, space, length=None, stride=None):
+        """Weak-form windows of every trajectory: the points, weights and rates of their rows.
+
+        Each window of ``length`` consecutive samples (``stride`` apart; a
+        shorter trajectory is one window) gives one row group: the test
+        function ``phi(s) = (1 - s**2)**WEAK_POWER`` over the window (``s``
+        from -1 to 1), integrated by the trapezoid rule on the samples'
+        times, so that ``int phi f(x) dt = -int phi' x dt`` holds without any
+        derivative estimate, ``phi`` vanishing at both ends. Rows are
+        normalized by ``int phi dt``: the weights of the points sum to one
+        and the rate is a weighted mean of ``dx/dt``. Periodic variables are
+        unwrapped within a window.
+
+        Returns
+        -------
+        points : ndarray of shape (n_windows, length, n_states)
+        weights : ndarray of shape (n_windows, length)
+            Zero beyond a short trajectory's samples.
+        rate : ndarray of shape (n_windows, n_states)
+        group_weight : ndarray of shape (n_windows,)
+        """
+        self._check_trajectories("weak", 3)
+        length = WEAK_WINDOW if length is None else length
+        stride = max(1, length // WEAK_OVERLAP) if stride is None else stride
+        width = min(length, max(S.shape[0] for _, S in self.trajectories))
+        points, weights, rates, group = [], [], [], []
+        for k, (t, S) in enumerate(self.trajectories):
+            n = S.shape[0]
+            size = min(width, n)
+            starts = range(0, n - size + 1, stride) if n > size else [0]
+            starts = list(starts)
+            if starts[-1] != n - size:
+                starts.append(n - size)  # the trajectory's end in a window too
+            unwrapped = S[0] + np.concatenate(
+                [np.zeros((1, S.shape[1])), np.cumsum(space.wrap_difference(np.diff(S, axis=0)),
+                                                      axis=0)])
+            w_traj = 1.0 if self.trajectory_weight is None else self.trajectory_weight[k]
+            for a in starts:
+                tt, X = t[a : a + size], unwrapped[a : a + size]
+                span = tt[-1] - tt[0]
+                s = 2.0 * (tt - tt[0]) / span - 1.0
+                phi = (1.0 - s**2) ** WEAK_POWER
+                dphi = -2.0 * WEAK_POWER * s * (1.0 - s**2) ** (WEAK_POWER - 1) * (2.0 / span)
+                trapezoid = np.zeros(size)
+                h = np.diff(tt)
+                trapezoid[:-1] += h / 2
+                trapezoid[1:] += h / 2
+                mass = np.sum(trapezoid * phi)
+                pad = width - size
+                points.append(np.concatenate([X, np.repeat(X[-1:], pad, axis=0)]))
+                weights.append(np.concatenate([trapezoid * phi / mass, np.zeros(pad)]))
+                rates.append(-(trapezoid * dphi) @ X / mass)
+                group.append(w_traj)
+        return (np.array(points), np.array(weights), np.array(rates), np.array(group))
+
     def quadrature(self, space, fit_on, n_nodes):
         """The :class:`Quadrature` of the fit's row groups."""
+        if fit_on == "weak":
+            X, w, rate, group = self.windows(space)
+            points = [(X[:, i], w[:, i]) for i in range(X.shape[1])]
+            return Quadrature(points, rate, None if self.trajectory_weight is None else group)
         if fit_on == "steps":
             x0, dx, dt, weight = self.steps(space)
             nodes, node_weights = gauss_on_unit(n_nodes)
@@ -211,6 +276,37 @@ class TrainingData:
             return Quadrature(points, move / (h1 + h2)[:, None], weight)
         return Quadrature([(self.states, 1.0)], self.derivatives, self.sample_weight)
 
+    def windows_count(self, length=None, stride=None):
+        """Number of weak-form windows (row groups) of :meth:`windows`."""
+        self._check_trajectories("weak", 3)
+        length = WEAK_WINDOW if length is None else length
+        stride = max(1, length // WEAK_OVERLAP) if stride is None else stride
+        width = min(length, max(S.shape[0] for _, S in self.trajectories))
+        count = 0
+        for _, S in self.trajectories:
+            n = S.shape[0]
+            if n <= width:
+                count += 1
+                continue
+            starts = (n - width) // stride + 1
+            count += starts + ((n - width) % stride != 0)
+        return count
+
+    def _check_trajectories(self, fit_on, fewest):
+        if self.trajectories is None:
+            raise ValueError(
+                f"fit_on={fit_on!r} fits trajectories: pass the output of "
+                f"DerivativeTransformer (trajectories with their times), not 2-D states with "
+                f"derivatives."
+            )
+        short = [k for k, (_, S) in enumerate(self.trajectories) if S.shape[0] < fewest]
+        if short:
+            raise ValueError(
+                f"fit_on={fit_on!r} needs at least {fewest} samples per trajectory; "
+                f"{len(short)} of {len(self.trajectories)} trajectories have fewer (the first "
+                f"is number {short[0]}). Drop them, or fit with fit_on='steps'."
+            )
+
     def n_rows(self, fit_on):
         """Number of state (or step) row groups the fit will have."""
         if fit_on == "steps" and self.trajectories is not None:
@@ -218,6 +314,8 @@ class TrainingData:
         if fit_on == "simpson":
             self._check_pairs()
             return sum(S.shape[0] - 2 for _, S in self.trajectories)
+        if fit_on == "weak":
+            return self.windows_count()
         return self.states.shape[0]
 
 

@@ -51,13 +51,15 @@ class VectorFieldRegressor(BaseTrajectoryRegressor):
     couplings : list of sequences of int, default=None
         Groups of state variables that may share a basis function, as in
         :class:`HamiltonianRegressor`; None: any variables may.
-    fit_on : {"derivatives", "steps", "simpson"}, default="derivatives"
+    fit_on : {"derivatives", "steps", "simpson", "weak"}, default="derivatives"
         ``"steps"``: fit ``x1 - x0 = dt int_0^1 f(x0 + s (x1 - x0)) ds`` on the
         observed steps instead of estimated derivatives (derivative layout
         input only), the counterpart of the structure-preserving steps fit.
         ``"simpson"``: fit ``x2 - x0`` over each pair of consecutive steps
         with Simpson's rule for the integral of ``f`` (exact to
-        ``O(dt**4)``; at least three samples per trajectory).
+        ``O(dt**4)``; at least three samples per trajectory). ``"weak"``: the
+        weak form over windows of samples, as in
+        :class:`HamiltonianRegressor`.
     threshold : float, default=0.0
         Sparsity threshold, as in :class:`HamiltonianRegressor`, applied to
         each component separately (SINDy's sequentially thresholded least

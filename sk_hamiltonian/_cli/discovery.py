@@ -27,8 +27,8 @@ from .search import SearchResult
 from .words import counted
 
 # Fit targets the command searches unless told (--fit-on).
-DEFAULT_FIT_ON = ("derivatives", "steps", "simpson")
-QUICK_FIT_ON = ("derivatives", "simpson")
+DEFAULT_FIT_ON = ("derivatives", "steps", "simpson", "weak")
+QUICK_FIT_ON = ("derivatives", "weak")
 
 
 def run_discovery(args, data):

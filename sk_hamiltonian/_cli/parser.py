@@ -165,8 +165,8 @@ def build_parser():
         "kept, with --paper-grid)",
     )
     parser.add_argument(
-        "--fit-on", nargs="+", choices=("derivatives", "steps", "simpson"), metavar="TARGET",
-        help="fit targets searched: derivatives, steps, simpson (default: all three; "
+        "--fit-on", nargs="+", choices=("derivatives", "steps", "simpson", "weak"), metavar="TARGET",
+        help="fit targets searched: derivatives, steps, simpson, weak (default: all four; "
         "derivatives with --paper-grid)",
     )
     parser.add_argument(

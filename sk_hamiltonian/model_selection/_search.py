@@ -19,7 +19,7 @@ from .._trajectories import check_trajectories
 from ._fold_problems import FoldProblems, take
 from ._selection import SELECTIONS, pick_among, pick_within
 
-FIT_TARGETS = ("derivatives", "steps", "simpson")
+FIT_TARGETS = ("derivatives", "steps", "simpson", "weak")
 FAMILIES = ("polynomial", "periodic", "mixed")
 # Position coordinates searched one by one up to this many degrees of
 # freedom; beyond, all positions share one family (3**d spaces grow fast).

@@ -29,11 +29,14 @@ the least biased fit target (:data:`FIT_ON_ORDER`); the best mean score.
 import numpy as np
 
 #: Fit targets from the least to the most biased, for the ``"simplest"`` rule:
-#: Simpson's rule on pairs of observed steps is exact to O(dt**4) and learns
-#: ``H`` itself; the observed steps learn the AVF map's modified Hamiltonian,
-#: within O(dt**2) of it; the derivative fit inherits the bias of the
-#: derivative estimate, the weakest link of a de-noising polynomial.
-FIT_ON_ORDER = ("simpson", "steps", "derivatives")
+#: the weak form's test functions average the states' noise out of both sides
+#: of its equations; Simpson's rule on pairs of observed steps is exact to
+#: O(dt**4) and learns ``H`` itself, but the noise of the pair's ends enters
+#: both its target and its regressors; the observed steps learn the AVF map's
+#: modified Hamiltonian, within O(dt**2) of it; the derivative fit inherits
+#: the bias of the derivative estimate, the weakest link of a de-noising
+#: polynomial.
+FIT_ON_ORDER = ("weak", "simpson", "steps", "derivatives")
 
 SELECTIONS = ("simplest", "best_score")
 
