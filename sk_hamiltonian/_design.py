@@ -15,6 +15,9 @@ The regressors fit linear models, so every fit is a least-squares problem
   against ``(x2 - x0) / (t2 - t0)``. Also linear and derivative-free, and
   exact to ``O(dt**4)`` for the true field, so it learns the Hamiltonian
   itself rather than the AVF method's modified one.
+- ``fit_on="weak"``: one row group per window of consecutive samples, the
+  basis weighted by a smooth bump ``phi`` against ``-int phi' x dt`` (the
+  weak form, :meth:`~sk_hamiltonian._training_data.TrainingData.windows`).
 
 Every kind is a :class:`~sk_hamiltonian._training_data.Quadrature`: the
 points where a row group evaluates
@@ -201,7 +204,7 @@ def value_blocks(maps, data, fit_on, n_nodes, damping=False):
     maps : DerivativeMaps
         The gradient of the fit's model space on its value basis.
     data : TrainingData
-    fit_on : {"derivatives", "steps", "simpson"}
+    fit_on : {"derivatives", "steps", "simpson", "weak"}
     n_nodes : int
         Gauss-Legendre nodes of a step (as for :func:`hamiltonian_blocks`).
     damping : bool, default=False

@@ -41,7 +41,7 @@ class DesignOperator:
         The basis.
     data : TrainingData
         The samples.
-    fit_on : {"derivatives", "steps", "simpson"}
+    fit_on : {"derivatives", "steps", "simpson", "weak"}
         What the rows fit (see :mod:`._design`).
     n_nodes : int
         Gauss-Legendre nodes per step (``fit_on="steps"``).

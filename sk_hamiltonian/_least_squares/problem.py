@@ -76,7 +76,7 @@ class Design:
     space : ModelSpace
         The basis: one column per function (and the friction columns of a
         damped Hamiltonian after them).
-    fit_on : {"derivatives", "steps", "simpson"}
+    fit_on : {"derivatives", "steps", "simpson", "weak"}
         What the rows fit (see :mod:`sk_hamiltonian._design`).
     """
 
@@ -190,7 +190,7 @@ class HamiltonianDesign(Design):
     ----------
     space : ModelSpace
         The basis of ``H~``.
-    fit_on : {"derivatives", "steps", "simpson"}
+    fit_on : {"derivatives", "steps", "simpson", "weak"}
         What the rows fit.
     damping : bool, default=False
         One friction column per degree of freedom after the basis, its

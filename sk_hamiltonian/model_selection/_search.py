@@ -129,10 +129,10 @@ class HamiltonianSearchCV(BaseEstimator):
         ``couplings``, ``solver``). ``"auto"`` (:func:`auto_spaces`): each
         position coordinate polynomial, periodic or mixed, each as a general
         and as a mechanical Hamiltonian (``momentum_degree=2``).
-    fit_on : sequence of {"derivatives", "steps", "simpson"}, default=("derivatives", "steps", "simpson")
+    fit_on : sequence of {"derivatives", "steps", "simpson", "weak"}, default=("derivatives", "steps", "simpson", "weak")
         Fit targets (see :class:`~sk_hamiltonian.HamiltonianRegressor`). The
-        steps and Simpson fits use the layout's states: the de-noised states
-        with a polynomial, the raw ones with finite differences.
+        steps, Simpson and weak fits use the layout's states: the de-noised
+        states with a polynomial, the raw ones with finite differences.
     thresholds : sequence of float, default=(0.0, 0.001, 0.01, 0.03, 0.1)
         Sparsity thresholds (0: every term).
     damping : bool, default=False
@@ -149,7 +149,7 @@ class HamiltonianSearchCV(BaseEstimator):
         (which the data cannot tell from it), the fewest terms, then the
         smoothest derivative layout (the lowest de-noising degree; noise left
         in the states biases the coefficients toward zero), then the least
-        biased fit target (Simpson, then steps, then derivatives), then the
+        biased fit target (weak, Simpson, steps, then derivatives), then the
         best mean score.
     cv : int, cross-validation generator or iterable, default=5
         Folds of whole trajectories, as in
