@@ -150,12 +150,21 @@ def _provenance(args, data, result):
 
 
 def _fit_baseline(best, X):
-    """The component-wise (non-SP) baseline in the chosen space, every term, or None if it cannot fit."""
+    """The component-wise (non-SP) baseline of the chosen model, or None if it cannot fit.
+
+    The same derivative layout, model space, degree, threshold and fit target,
+    one vector-field component at a time (with a threshold: SINDy's
+    sequential thresholding in this library); for the paper's grid, the
+    paper's dense baseline.
+    """
     chosen = best[-1]
     baseline = make_pipeline(
         DerivativeTransformer(**best[0].get_params()),
-        VectorFieldRegressor(degree=chosen.degree, domain=chosen.domain,
-                             periodic=chosen.periodic, mixed=chosen.mixed),
+        VectorFieldRegressor(
+            degree=chosen.degree, domain=chosen.domain, periodic=chosen.periodic,
+            mixed=chosen.mixed, momentum_degree=chosen.momentum_degree,
+            separable=chosen.separable, threshold=chosen.threshold, fit_on=chosen.fit_on,
+        ),
     )
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
