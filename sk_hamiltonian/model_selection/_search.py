@@ -201,13 +201,15 @@ class HamiltonianSearchCV(BaseEstimator):
     Examples
     --------
     >>> from sk_hamiltonian.datasets import make_trajectories, single_pendulum
-    >>> from sk_hamiltonian.inspection import format_hamiltonian
+    >>> from sk_hamiltonian.inspection import hamiltonian_terms
     >>> from sk_hamiltonian.model_selection import HamiltonianSearchCV
     >>> X = make_trajectories(single_pendulum(), 100, 40, dt=0.01, noise=0.02, random_state=0)
     >>> search = HamiltonianSearchCV(dt=0.01, denoise_degrees=[3], degrees=[4],
-    ...                              fit_on=["derivatives"]).fit(X)
-    >>> print(format_hamiltonian(search.best_estimator_[-1]))
-    H~ = -9.8 cos(q) + 0.5 p^2 + const
+    ...                              fit_on=["derivatives", "weak"]).fit(X)
+    >>> sorted(term.text for term in hamiltonian_terms(search.best_estimator_[-1]))
+    ['cos(q)', 'p^2']
+    >>> search.best_params_["hamiltonianregressor__periodic"]
+    [False, True]
     """
 
     _parameter_constraints = {
