@@ -354,7 +354,20 @@ class HamiltonianSearchCV(BaseEstimator):
 
     # ------------------------------------------------------------ delegation
     def predict(self, X):
-        """:meth:`~sklearn.pipeline.Pipeline.predict` of :attr:`best_estimator_`."""
+        """The chosen model's time derivatives at the states of trajectories ``X``.
+
+        Parameters
+        ----------
+        X : array-like
+            Raw trajectories, as for :meth:`fit`.
+
+        Returns
+        -------
+        dXdt : ndarray or list of ndarray
+            :meth:`~sklearn.pipeline.Pipeline.predict` of
+            :attr:`best_estimator_`: the learned vector field at the
+            trajectories' (de-noised) states, in their shape.
+        """
         check_is_fitted(self)
         return self.best_estimator_.predict(X)
 
@@ -377,12 +390,39 @@ class HamiltonianSearchCV(BaseEstimator):
         return self.best_estimator_.score(X)
 
     def simulate(self, x0, t, **kwargs):
-        """:meth:`~sk_hamiltonian.HamiltonianRegressor.simulate` of the chosen model."""
+        """Integrate the chosen model from one or several initial states.
+
+        Parameters
+        ----------
+        x0 : array-like of shape (n_states,) or (n_initial, n_states)
+            Initial state(s), at time ``t[0]``.
+        t : array-like of shape (n_times,)
+            Strictly increasing output times.
+        **kwargs
+            ``method``, ``max_step`` and ``on_failure`` of
+            :meth:`sk_hamiltonian.HamiltonianRegressor.simulate`.
+
+        Returns
+        -------
+        X : ndarray of shape (n_times, n_states) or (n_initial, n_times, n_states)
+            The trajectories, sampled at ``t``.
+        """
         check_is_fitted(self)
         return self.best_estimator_[-1].simulate(x0, t, **kwargs)
 
     def hamiltonian(self, X):
-        """:meth:`~sk_hamiltonian.HamiltonianRegressor.hamiltonian` of the chosen model."""
+        """The chosen model's learned Hamiltonian ``H~`` at states ``X``.
+
+        Parameters
+        ----------
+        X : array-like of shape (n_samples, n_states) or (..., n_states)
+            States.
+
+        Returns
+        -------
+        H : ndarray of shape X.shape[:-1]
+            See :meth:`sk_hamiltonian.HamiltonianRegressor.hamiltonian`.
+        """
         check_is_fitted(self)
         return self.best_estimator_[-1].hamiltonian(X)
 
