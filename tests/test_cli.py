@@ -32,20 +32,64 @@ def number(pattern, text):
     return float(match.group(1))
 
 
-@pytest.fixture(scope="module")
-def demo(tmp_path_factory):
-    # --quick: the built-in example with 60 trajectories, 4 candidates, T = 5
-    # (the full default run takes about 30 s; its timing is in the docs).
-    out_dir = tmp_path_factory.mktemp("demo")
+def _main_captured(argv):
     # A module-scoped fixture cannot use capsys: capture by hand.
     stdout, stderr = io.StringIO(), io.StringIO()
     with contextlib.redirect_stdout(stdout), contextlib.redirect_stderr(stderr):
-        status = main(["--quick", "--output", str(out_dir)])
-    return status, stdout.getvalue(), stderr.getvalue(), out_dir
+        status = main(argv)
+    return status, stdout.getvalue(), stderr.getvalue()
 
 
-def test_default_example_report(demo):
+@pytest.fixture(scope="module")
+def demo(tmp_path_factory):
+    # --quick: the built-in example with 60 trajectories, a small search, T = 5
+    # (the full default run takes about 25 s of CPU; its timing is in the docs).
+    out_dir = tmp_path_factory.mktemp("demo")
+    return (*_main_captured(["--quick", "--output", str(out_dir)]), out_dir)
+
+
+@pytest.fixture(scope="module")
+def paper_demo(tmp_path_factory):
+    # --paper-grid --quick: the paper's grid, 4 candidates.
+    out_dir = tmp_path_factory.mktemp("paper_demo")
+    return (*_main_captured(["--paper-grid", "--quick", "--output", str(out_dir)]), out_dir)
+
+
+def test_default_example_finds_the_law(demo):
     status, out, err, out_dir = demo
+    assert status == 0
+    assert "single pendulum" in out and "60 trajectories x 41 samples" in out
+    assert re.search(r"^search: model spaces .* fit targets derivatives, weak, de-noising fd, 5, "
+                     r"degrees 4, 6, thresholds 0, 0.001, 0.01, 0.03, 0.1; 5 folds", out, re.M)
+    # The screen keeps the periodic mechanical space, and the law comes back.
+    assert "kept: [{'periodic': [False, True], 'momentum_degree': 2}]" in out
+    chosen = re.search(r"^chosen: (.*) -> (\d+) terms? \(score", out, re.M)
+    assert chosen and "periodic q, mechanical" in chosen.group(1) and chosen.group(2) == "2", out
+    learned = re.search(r"^learned: H~ = (-9\.\d+) cos\(q\) \+ (0\.\d+) p\^2 \+ const$", out,
+                        re.M)
+    assert learned, out
+    # Within 3 % of g = 9.8 and 1/2 from 60 trajectories with 8 % noise.
+    assert abs(float(learned.group(1)) + 9.8) < 0.3 and abs(float(learned.group(2)) - 0.5) < 0.015
+    model = load(out_dir / "model.skh")
+    assert model[-1].n_terms_ == 2 and list(model[-1].periodic) == [False, True]
+    assert not (out_dir / "model.joblib").exists()  # pickle only on request (--joblib)
+    sp = number(r"SP\s+relative error at T: (\S+)", out)
+    non_sp = number(r"non-SP\s+relative error at T: (\S+)", out)
+    assert 0 < sp < 1 and non_sp > 0
+    rk4 = number(r"H~ drift max\|H~\(t\) - H~\(0\)\|, RK4: (\S+)", out)
+    avf = number(r"H~ drift max\|H~\(t\) - H~\(0\)\|, AVF: (\S+)", out)
+    assert avf < 1e-10 < rk4  # AVF conserves H~ to round-off, RK4 does not
+    assert (out_dir / "report.png").stat().st_size > 10_000
+    trend = re.search(r"energy trend of H~ along the data: \S+ of its spread per unit time "
+                      r"\(z = (\S+)\): (.*)$", out, re.M)
+    assert trend and "look conservative" in trend.group(2), out
+    # The ties are the search's own (paired), and the pick is said to be the simplest.
+    tied = re.search(r"^(tied: .*|no tie: .*)$", out, re.M)
+    assert tied and "paired standard error" in tied.group(1), out
+
+
+def test_paper_grid_example_report(paper_demo):
+    status, out, err, out_dir = paper_demo
     assert status == 0
     assert "single pendulum" in out and "60 trajectories x 41 samples" in out
     # A progress line per candidate (2 derivative options x 2 degrees).
@@ -85,8 +129,9 @@ def test_default_example_report(demo):
     assert trend.group(1) == f"{model[-1].energy_trend_z_:.1f}"
 
 
-def test_model_from_the_report_predicts(demo):
-    *_, out_dir = demo
+@pytest.mark.parametrize("fixture", ["demo", "paper_demo"])
+def test_model_from_the_report_predicts(fixture, request):
+    *_, out_dir = request.getfixturevalue(fixture)
     model = load(out_dir / "model.skh")
     X = make_trajectories("single_pendulum", 3, 40, 0.01, random_state=5)
     assert 0.5 < model.score(X) <= 1.0
@@ -130,7 +175,7 @@ def test_refit_takes_the_best_mean_score_and_says_whether_it_is_tied(
     np.savez(path, trajectories=pendulum_data)
     status, out, err = run(
         [str(path), "--dt", "0.02", "--output", str(tmp_path), "--degrees", "4", "6", "8",
-         "--denoise-degrees", "fd", "--horizon", "1"], capsys,
+         "--denoise-degrees", "fd", "--horizon", "1", "--paper-grid"], capsys,
     )
     assert status == 0
     assert "refit = best mean score" in out
@@ -155,11 +200,19 @@ def test_csv_file_with_unequal_lengths_and_names(tmp_path, capsys, pendulum_data
     path.write_text("\n".join(rows) + "\n")
     status, out, _ = run(
         [str(path), "--dt", "0.02", "--output", str(tmp_path), "--degrees", "6",
-         "--denoise-degrees", "fd", "--cv", "4", "--horizon", "2"], capsys,
+         "--denoise-degrees", "fd", "--cv", "4", "--horizon", "2", "--paper-grid"], capsys,
     )
     assert status == 0
     assert "40 trajectories x 20-30 samples" in out
     assert re.search(r"H~ = \d\.\d+ angle\^2 \+ 0\.\d+ mom\^2 ", out), out
+    # The default search names the angle in its readable terms.
+    status, out, _ = run(
+        [str(path), "--dt", "0.02", "--output", str(tmp_path), "--degrees", "6",
+         "--denoise-degrees", "fd", "--cv", "4", "--horizon", "2"], capsys,
+    )
+    assert status == 0
+    assert re.search(r"^learned: H~ = -9\.\d+ cos\(angle\) \+ 0\.\d+ mom\^2 \+ const$", out,
+                     re.M), out
     assert "up to T = 2 " in out
 
 
@@ -276,11 +329,19 @@ def test_short_trajectories_drop_impossible_candidates(tmp_path, capsys):
     np.savez(path, trajectories=X)
     status, out, err = run(
         [str(path), "--dt", "0.01", "--output", str(tmp_path), "--degrees", "4",
-         "--denoise-degrees", "fd", "2", "3", "5"], capsys,
+         "--denoise-degrees", "fd", "2", "3", "5", "--paper-grid"], capsys,
     )
     assert status == 0
     assert "note: dropped de-noising degrees [3, 5]: trajectories have 4 samples" in out
     assert len(re.findall(r"^\s+\[\d/2\]", err, re.M)) == 2
+    # The default search drops them with the same note.
+    status, out, err = run(
+        [str(path), "--dt", "0.01", "--output", str(tmp_path), "--degrees", "4",
+         "--denoise-degrees", "fd", "2", "3", "5", "--fit-on", "derivatives"], capsys,
+    )
+    assert status == 0
+    assert "note: dropped de-noising degrees [3, 5]: trajectories have 4 samples" in out
+    assert "de-noising fd, 2, degrees" in out
 
 
 # --------------------------------------------------------------------------
@@ -514,7 +575,7 @@ def test_cli_round_trip_fit_show_simulate(demo, tmp_path, capsys):
     assert status == 0
     # The formula and the CV choice printed by the fit are in the file.
     assert f"learned: {learned}" in shown
-    chosen = re.search(r"chosen: (\S+(?: differences)?, n=\d+)", out).group(1)
+    chosen = re.search(r"^chosen: (.*) -> ", out, re.M).group(1)
     assert f"cv_choice: {chosen}" in shown
     assert "data_shape: 60 trajectories x 41 samples x 2 states" in shown
     assert re.search(r"fit_time_s: \d+\.\d+", shown)
@@ -636,7 +697,7 @@ def test_threshold_option(tmp_path, capsys, pendulum_data):
     path = tmp_path / "runs.npz"
     np.savez(path, trajectories=pendulum_data)
     base = [str(path), "--dt", "0.02", "--output", str(tmp_path), "--degrees", "6",
-            "--denoise-degrees", "fd", "--horizon", "1"]
+            "--denoise-degrees", "fd", "--horizon", "1", "--paper-grid"]
     status, out, err = run(base + ["--threshold", "auto"], capsys)
     assert status == 0
     assert "search: 5 candidates" in out
@@ -677,8 +738,13 @@ def test_a_failure_every_candidate_shares_is_one_line_and_domain_acts_on_it(tmp_
     base = [str(path), "--dt", "0.02", "--output", str(tmp_path), "--degrees", "4", "6",
             "--denoise-degrees", "fd", "--cv", "3", "--horizon", "1"]
     # error_of: exit code 2, no traceback, one line on stderr.
-    line = error_of(base, capsys)
+    line = error_of(base + ["--paper-grid"], capsys)
     assert "every candidate failed to fit (6 cross-validation fits, with the same error)" in line
+    assert "State variable(s) [0] are constant in the training data" in line
+    assert "one --domain LOW HIGH per state variable, in the order p, q" in line
+    # The default search says the same reason in one line.
+    line = error_of(base, capsys)
+    assert "the search failed" in line
     assert "State variable(s) [0] are constant in the training data" in line
     assert "one --domain LOW HIGH per state variable, in the order p, q" in line
     status, out, _ = run(base + ["--domain", "0", "1", "--domain", "-3", "3"], capsys)
@@ -716,7 +782,7 @@ def test_one_candidate_reads_in_the_singular_and_claims_no_tie(tmp_path, capsys,
     np.savez(path, trajectories=pendulum_data)
     status, out, err = run(
         [str(path), "--dt", "0.02", "--output", str(tmp_path), "--degrees", "4",
-         "--denoise-degrees", "fd", "--horizon", "1"], capsys,
+         "--denoise-degrees", "fd", "--horizon", "1", "--paper-grid"], capsys,
     )
     assert status == 0
     assert "search: 1 candidate x 5 folds" in out and "1 candidates" not in out

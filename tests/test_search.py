@@ -182,7 +182,7 @@ def test_pick_within_prefers_fewer_terms_among_ties():
     (dict(degrees=[0]), "degrees"),
     (dict(thresholds=[-1.0]), "thresholds"),
     (dict(denoise_degrees=["fd"]), "denoise_degrees"),
-    (dict(fit_on=["steps", "weak"]), "fit_on"),
+    (dict(fit_on=["steps", "strong"]), "fit_on"),
     (dict(spaces=[{"degree": 3}]), "spaces"),
     (dict(denoise_degrees=[40]), "shortest trajectory"),
 ])
@@ -203,3 +203,14 @@ def test_unfitted_search_raises_not_fitted():
 
     with pytest.raises(NotFittedError):
         small_search().predict(np.zeros((3, 2)))
+
+
+def test_an_explicit_domain_reaches_every_candidate_and_the_refit(pendulum):
+    X = pendulum.copy()
+    X[..., 0] = 1.0  # a constant momentum: the bounding box is empty
+    domain = [[0.0, 2.0], [-np.pi, np.pi]]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        search = small_search(spaces=[{}], fit_on=["derivatives"], domain=domain).fit(X)
+    assert search.best_params_["hamiltonianregressor__domain"] == domain
+    np.testing.assert_array_equal(search.best_estimator_[-1].domain_, domain)

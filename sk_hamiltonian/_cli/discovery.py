@@ -14,16 +14,8 @@ from sklearn.model_selection import GroupKFold, KFold
 
 from ..model_selection import HamiltonianSearchCV
 from .errors import UsageError
-from .parser import (
-    DEFAULT_DEGREES,
-    DEFAULT_DENOISE,
-    QUICK_DEGREES,
-    QUICK_DENOISE,
-    parse_denoise,
-    parse_domain,
-    parse_threshold,
-)
-from .search import SearchResult
+from .parser import DEFAULT_DEGREES, QUICK_DEGREES, parse_domain, parse_threshold
+from .search import SearchResult, usable_denoise
 from .words import counted
 
 # Fit targets the command searches unless told (--fit-on).
@@ -50,8 +42,10 @@ def run_discovery(args, data):
     UsageError
         If no candidate could be fitted: one line with the reason.
     """
-    denoise = parse_denoise(args.denoise_degrees or (QUICK_DENOISE if args.quick else DEFAULT_DENOISE))
-    degrees = args.degrees or (QUICK_DEGREES if args.quick else DEFAULT_DEGREES)
+    denoise = usable_denoise(args, data)
+    degrees = sorted(set(args.degrees or (QUICK_DEGREES if args.quick else DEFAULT_DEGREES)))
+    if degrees[0] < 1:
+        raise UsageError(f"--degrees: n must be at least 1; got {degrees[0]}")
     thresholds = parse_threshold(args.threshold or "auto")
     fit_on = args.fit_on or (QUICK_FIT_ON if args.quick else DEFAULT_FIT_ON)
     if data.groups is None:

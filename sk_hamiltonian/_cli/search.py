@@ -165,16 +165,12 @@ def _shared_failure(n_fits, message, reason, names):
     return line
 
 
-def _grid(args, data):
-    """Candidate parameters, keeping only those the data can support."""
-    X, n_states = data.X, len(data.names)
+def usable_denoise(args, data):
+    """The de-noising degrees of the options the data allow, with a note on those dropped."""
     denoise = parse_denoise(
         args.denoise_degrees or (QUICK_DENOISE if args.quick else DEFAULT_DENOISE)
     )
-    degrees = sorted(set(args.degrees or (QUICK_DEGREES if args.quick else DEFAULT_DEGREES)))
-    if degrees[0] < 1:
-        raise UsageError(f"--degrees: n must be at least 1; got {degrees[0]}")
-    lengths = [len(T) for T in X]
+    lengths = [len(T) for T in data.X]
     shortest = min(lengths)
     # Q = n_times - 1 interpolates the noise (trajectories have at least 3 samples).
     dropped = [Q for Q in denoise if Q != "fd" and Q > shortest - 2]
@@ -186,6 +182,20 @@ def _grid(args, data):
         )
         print(f"note: dropped de-noising degrees {dropped}: {which}")
     denoise = [Q for Q in denoise if Q not in dropped]
+    if not denoise:
+        raise UsageError(
+            f"no de-noising degree left: give --denoise-degrees at most {shortest - 2}, or 'fd'"
+        )
+    return denoise
+
+
+def _grid(args, data):
+    """Candidate parameters, keeping only those the data can support."""
+    X, n_states = data.X, len(data.names)
+    denoise = usable_denoise(args, data)
+    degrees = sorted(set(args.degrees or (QUICK_DEGREES if args.quick else DEFAULT_DEGREES)))
+    if degrees[0] < 1:
+        raise UsageError(f"--degrees: n must be at least 1; got {degrees[0]}")
     # At least twice as many equations as unknowns in every training fold.
     equations = (args.cv - 1) / args.cv * sum(len(T) for T in X) * n_states
     too_big = [
@@ -194,10 +204,6 @@ def _grid(args, data):
     if too_big:
         print(f"note: dropped degrees {too_big}: too many unknowns for the data")
     degrees = [n for n in degrees if n not in too_big]
-    if not denoise:
-        raise UsageError(
-            f"no de-noising degree left: give --denoise-degrees at most {shortest - 2}, or 'fd'"
-        )
     if not degrees:
         raise UsageError("no degree left: give lower --degrees, or more data")
     grid = []

@@ -35,15 +35,6 @@ from .. import _fit_steps as steps
 from .._hamiltonian import HamiltonianRegressor
 from .._space import ModelSpace
 from .._space.mixed import factor_degrees
-from .._trajectories import unpack_derivatives
-
-
-def layout_domain(Xt, periodic):
-    """Bounding box of a derivative layout's states, one period ``[-pi, pi)`` for angles."""
-    states = np.concatenate(list(unpack_derivatives(Xt).states))
-    domain = np.column_stack([states.min(axis=0), states.max(axis=0)])
-    domain[np.asarray(periodic, dtype=bool)] = [-np.pi, np.pi]
-    return domain
 
 
 def take(X, indices):
@@ -98,15 +89,11 @@ class FoldProblems:
         self._model = HamiltonianRegressor(**self.params, degree=degree)
         self._model._validate_params()
         self.data = self._model._training_data(Xt, None, None)
-        n_states = self.data.states.shape[1]
-        periodic = self.params.get("periodic")
-        if domain is None:
-            periodic = np.zeros(n_states, bool) if periodic is None else periodic
-            self.domain = layout_domain(Xt, periodic)
-        else:
-            self.domain = np.asarray(domain, dtype=float)
-        self.space = steps.build_space(self._model, self.data, domain=self.domain,
-                                       size_data=_NoSizeCheck(self.data))
+        # The whole layout's box (checked as a fit checks its own: a constant
+        # variable needs an explicit domain), shared by every fold.
+        self.space = steps.build_space(
+            self._model, self.data, domain=domain, size_data=_NoSizeCheck(self.data))
+        self.domain = self.space.domain
         self._design = self._model._design(self.space)
         self.n_tail = self._design.n_nonnegative
         self.n_rows = self._design.n_rows(self.data)

@@ -64,7 +64,7 @@ def auto_spaces(n_states):
     return spaces
 
 
-def _pipeline_params(denoise, fit_on, space, degree, threshold, damping):
+def _pipeline_params(denoise, fit_on, space, degree, threshold, damping, domain=None):
     """Parameters of ``make_pipeline(DerivativeTransformer(), HamiltonianRegressor())``."""
     params = {}
     if denoise == "finite_difference":
@@ -79,6 +79,8 @@ def _pipeline_params(denoise, fit_on, space, degree, threshold, damping):
     params["hamiltonianregressor__fit_on"] = fit_on
     if damping:
         params["hamiltonianregressor__damping"] = True
+    if domain is not None:
+        params["hamiltonianregressor__domain"] = domain
     return params
 
 
@@ -337,7 +339,7 @@ class HamiltonianSearchCV(BaseEstimator):
         self.spaces_ = spaces
         self.kept_spaces_ = [spaces[k] for k in kept]
         self.n_splits_ = len(folds)
-        self.cv_results_ = _cv_results(records, spaces, len(folds), self.damping)
+        self.cv_results_ = _cv_results(records, spaces, len(folds), self.damping, self.domain)
         self.best_index_ = finalists[choice]
         self.best_params_ = self.cv_results_["params"][self.best_index_]
         self.best_score_ = float(self.cv_results_["mean_test_score"][self.best_index_])
@@ -654,11 +656,11 @@ def _kept_spaces(records, failures, spaces):
     return sorted(kept, key=ranking.get)[:MAX_SPACES]
 
 
-def _cv_results(records, spaces, n_folds, damping):
+def _cv_results(records, spaces, n_folds, damping, domain):
     """``cv_results_`` from the candidates' records."""
     params = [
         _pipeline_params(r["denoise"], r["fit_on"], spaces[r["space"]], r["degree"],
-                         r["threshold"], damping)
+                         r["threshold"], damping, domain)
         for r in records
     ]
     results = {"params": params}
