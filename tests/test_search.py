@@ -18,7 +18,7 @@ from sk_hamiltonian.datasets import make_trajectories, single_pendulum
 from sk_hamiltonian.inspection import hamiltonian_terms
 from sk_hamiltonian.model_selection import HamiltonianSearchCV, auto_spaces
 from sk_hamiltonian.model_selection._fold_problems import FoldProblems
-from sk_hamiltonian.model_selection._selection import paired_ties, pick_among, pick_within
+from sk_hamiltonian.model_selection._selection import pick_among, pick_within, ties
 
 SPACES = [{}, {"periodic": [False, True], "momentum_degree": 2}]
 
@@ -151,10 +151,9 @@ def test_ties_are_paired():
         1.0 + fold_noise - 1e-5 + rng.normal(scale=1e-6, size=5),  # 10 paired SE behind
         1.0 + fold_noise + np.array([1, -1, 1, -1, 0]) * 1e-6,  # no difference on average
     ])
-    tied = paired_ties(scores, 0, higher_is_better=True)
-    assert tied.tolist() == [True, False, True]
-    # Unpaired, the fold noise would hide the difference of the second.
-    assert scores[1].mean() > scores[0].mean() - scores[0].std() / np.sqrt(5)
+    assert ties(scores, 0, higher_is_better=True, paired=True).tolist() == [True, False, True]
+    # Unpaired, the fold noise hides the difference of the second.
+    assert ties(scores, 0, higher_is_better=True, paired=False).tolist() == [True, True, True]
 
 
 def test_the_simplest_of_the_tied_finalists_is_chosen():

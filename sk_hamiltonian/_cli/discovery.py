@@ -10,12 +10,11 @@ import time
 import warnings
 
 import numpy as np
-from sklearn.model_selection import GroupKFold, KFold
 
 from ..model_selection import HamiltonianSearchCV
 from .errors import UsageError
 from .parser import DEFAULT_DEGREES, QUICK_DEGREES, parse_domain, parse_threshold
-from .search import SearchResult, usable_denoise
+from .search import SearchResult, cv_folds, usable_denoise
 from .words import counted
 
 # Fit targets the command searches unless told (--fit-on).
@@ -48,10 +47,7 @@ def run_discovery(args, data):
         raise UsageError(f"--degrees: n must be at least 1; got {degrees[0]}")
     thresholds = parse_threshold(args.threshold or "auto")
     fit_on = args.fit_on or (QUICK_FIT_ON if args.quick else DEFAULT_FIT_ON)
-    if data.groups is None:
-        folds, what = KFold(args.cv, shuffle=True, random_state=args.seed), "whole trajectories"
-    else:
-        folds, what = GroupKFold(args.cv), "contiguous segments"
+    folds, what = cv_folds(args, data)
     search = HamiltonianSearchCV(
         dt=data.dt,
         denoise_degrees=["finite_difference" if q == "fd" else q for q in denoise],

@@ -81,10 +81,7 @@ def run_search(args, data):
         DerivativeTransformer(dt=data.dt),
         HamiltonianRegressor(damping=args.damping, domain=domain),
     )
-    if data.groups is None:
-        folds, what = KFold(args.cv, shuffle=True, random_state=args.seed), "whole trajectories"
-    else:
-        folds, what = GroupKFold(args.cv), "contiguous segments"
+    folds, what = cv_folds(args, data)
     print(
         f"search: {counted(n_candidates, 'candidate')} x {args.cv} folds of {what}, "
         f"score = rollouts vs held-out observations, refit = best mean score",
@@ -163,6 +160,13 @@ def _shared_failure(n_fits, message, reason, names):
             f"{', '.join(names)}."
         )
     return line
+
+
+def cv_folds(args, data):
+    """The folds of the search and their words: whole trajectories, or blocked segments."""
+    if data.groups is None:
+        return KFold(args.cv, shuffle=True, random_state=args.seed), "whole trajectories"
+    return GroupKFold(args.cv), "contiguous segments"
 
 
 def usable_denoise(args, data):

@@ -41,8 +41,8 @@ FIT_ON_ORDER = ("weak", "simpson", "steps", "derivatives")
 SELECTIONS = ("simplest", "best_score")
 
 
-def paired_ties(scores, best, higher_is_better):
-    """Which rows of ``scores`` (candidates x folds) are within one paired standard error of ``best``.
+def ties(scores, best, higher_is_better, paired):
+    """Which rows of ``scores`` (candidates x folds) are within one standard error of ``best``.
 
     Parameters
     ----------
@@ -52,6 +52,10 @@ def paired_ties(scores, best, higher_is_better):
         Row of the best candidate.
     higher_is_better : bool
         Direction of the score.
+    paired : bool
+        True: each row's fold-by-fold shortfall against the best, within its
+        own standard error. False: each row's mean within the standard error
+        of the best row's fold scores (the classical one-standard-error rule).
 
     Returns
     -------
@@ -61,12 +65,11 @@ def paired_ties(scores, best, higher_is_better):
     scores = np.asarray(scores, dtype=float)
     finite = np.isfinite(scores).all(axis=1)
     sign = 1.0 if higher_is_better else -1.0
-    # Fold-by-fold shortfall of each candidate against the best.
     shortfall = sign * (scores[best] - scores)
     with np.errstate(invalid="ignore"):
         mean = shortfall.mean(axis=1)
-        se = shortfall.std(axis=1) / np.sqrt(scores.shape[1])
-    tied = finite & (mean <= se)
+        spread = shortfall.std(axis=1) if paired else scores[best].std()
+        tied = finite & (mean <= spread / np.sqrt(scores.shape[1]))
     tied[best] = finite[best]
     return tied
 
@@ -77,31 +80,6 @@ def _best(means, higher_is_better):
         return None
     values = np.where(finite, means, -np.inf if higher_is_better else np.inf)
     return int(np.argmax(values) if higher_is_better else np.argmin(values))
-
-
-def one_se_ties(scores, best, higher_is_better):
-    """Rows within one standard error of the best row's fold scores (the classical rule).
-
-    Parameters
-    ----------
-    scores : ndarray of shape (n_candidates, n_folds)
-        Fold scores; rows with a non-finite entry never tie.
-    best : int
-        Row of the best candidate.
-    higher_is_better : bool
-        Direction of the score.
-
-    Returns
-    -------
-    tied : ndarray of shape (n_candidates,) of bool
-    """
-    scores = np.asarray(scores, dtype=float)
-    finite = np.isfinite(scores).all(axis=1)
-    sign = 1.0 if higher_is_better else -1.0
-    se = scores[best].std() / np.sqrt(scores.shape[1])
-    with np.errstate(invalid="ignore"):
-        tied = finite & (sign * scores.mean(axis=1) >= sign * scores[best].mean() - se)
-    return tied
 
 
 def pick_within(errors, n_terms, space_sizes=None):
@@ -128,7 +106,7 @@ def pick_within(errors, n_terms, space_sizes=None):
     best = _best(np.where(np.isfinite(errors).all(axis=1), errors.mean(axis=1), np.nan), False)
     if best is None:
         return None, np.zeros(errors.shape[0], dtype=bool)
-    tied = one_se_ties(errors, best, higher_is_better=False)
+    tied = ties(errors, best, higher_is_better=False, paired=False)
     rows = np.flatnonzero(tied)
     sizes = np.zeros(errors.shape[0]) if space_sizes is None else np.asarray(space_sizes)
     order = np.lexsort((errors[rows].mean(axis=1), sizes[rows], np.asarray(n_terms)[rows]))
@@ -166,7 +144,7 @@ def pick_among(scores, n_terms, smoothing, fit_on, selection="simplest"):
     best = _best(means, True)
     if best is None:
         return None, np.zeros(scores.shape[0], dtype=bool)
-    tied = paired_ties(scores, best, higher_is_better=True)
+    tied = ties(scores, best, higher_is_better=True, paired=True)
     if selection == "best_score":
         return best, tied
     rows = np.flatnonzero(tied)
