@@ -23,9 +23,9 @@ from sk_hamiltonian.datasets import (
     make_trajectories,
     single_pendulum,
 )
+from sk_hamiltonian._scoring import multistep_errors
 from sk_hamiltonian.model_selection import (
     count_terms,
-    multistep_errors,
     multistep_scorer,
     one_standard_error_rule,
     segment_trajectories,
