@@ -209,6 +209,29 @@ class TrainingData:
             return Quadrature(points, move / (h1 + h2)[:, None], weight)
         return Quadrature([(self.states, 1.0)], self.derivatives, self.sample_weight)
 
+    def groups_per_trajectory(self, fit_on):
+        """Row groups of each trajectory in :meth:`quadrature`, whose groups run trajectory by trajectory.
+
+        A state each (``"derivatives"``), a step each (``"steps"``) or a pair
+        of steps each (``"simpson"``). Needs trajectories.
+
+        Returns
+        -------
+        counts : ndarray of shape (n_trajectories,) of int
+        """
+        if self.trajectories is None:
+            raise ValueError(
+                "groups_per_trajectory needs trajectories: these training data are 2-D "
+                "states with derivatives. Build them from the derivative layout."
+            )
+        lengths = np.array([S.shape[0] for _, S in self.trajectories], dtype=np.intp)
+        if fit_on == "steps":
+            return np.maximum(lengths - 1, 0)
+        if fit_on == "simpson":
+            self._check_pairs()
+            return lengths - 2
+        return lengths
+
     def n_rows(self, fit_on):
         """Number of state (or step) row groups the fit will have."""
         if fit_on == "steps" and self.trajectories is not None:
