@@ -16,6 +16,7 @@ from numbers import Integral, Real
 import numpy as np
 
 from ._io_zip import ARRAY_KINDS, ModelFileError
+from ._space.mixed import factor_degrees
 
 #: Public fitted attributes and parameter names: lower case, ending in ``_``
 #: for fitted ones, never starting with one (no dunders, no private state).
@@ -154,12 +155,17 @@ REGRESSOR_ATTRIBUTES = {
     "coef_": (lambda v: _array(v, "f", (1, 2), finite=True), "a finite float array"),
     "powers_": (lambda v: _array(v, "iu", (2,)), "a 2-D integer array"),
     "periodic_": (lambda v: _array(v, "b", (1,)), "a 1-D boolean array"),
+    "mixed_": (lambda v: _array(v, "b", (1,)), "a 1-D boolean array"),
     "domain_": (lambda v: _array(v, "f", (2,), finite=True), "a finite 2-D float array"),
     "damping_": (lambda v: _array(v, "f", (1,), finite=True) and (v >= 0).all(),
                  "a finite 1-D array of non-negative floats"),
     "state_scale_": (lambda v: _array(v, "f", (1,), finite=True) and (v > 0).all(),
                      "a finite 1-D array of positive floats"),
     "support_": (lambda v: _array(v, "b", (1, 2)), "a boolean array"),
+    "resampled_coef_": (lambda v: _array(v, "f", (2, 3), finite=True),
+                        "a finite float array of one row per resample"),
+    "resampled_damping_": (lambda v: _array(v, "f", (2,), finite=True) and (v >= 0).all(),
+                           "a finite 2-D array of non-negative floats"),
     "cond_": (_float, "a float"),
     "rank_": (_int, "a non-negative integer"),
     "n_terms_": (_int, "a non-negative integer"),
@@ -227,15 +233,19 @@ def check_regressor(where, est, attributes):
     n = attributes["n_features_in_"]
     powers, coef, domain = attributes["powers_"], attributes["coef_"], attributes["domain_"]
     periodic = attributes["periodic_"]
+    # A model saved before mixed variables existed has none.
+    mixed = attributes.get("mixed_", np.zeros(n, dtype=bool))
     need(powers.shape[1] == n and powers.shape[0] >= 1,
          f"powers_ has shape {powers.shape}, expected (n_basis >= 1, {n})")
     need(periodic.shape == (n,), f"periodic_ has shape {periodic.shape}, expected ({n},)")
+    need(mixed.shape == (n,), f"mixed_ has shape {mixed.shape}, expected ({n},)")
+    need(not np.any(mixed & periodic), "mixed_ and periodic_ mark the same variable")
     need(domain.shape == (n, 2), f"domain_ has shape {domain.shape}, expected ({n}, 2)")
     need(bool(np.all(domain[:, 1] > domain[:, 0])), "domain_ has a row with low >= high")
-    magnitude = np.abs(powers.astype(np.int64))
-    need(bool(np.all(powers[:, ~periodic] >= 0)),
-         "powers_ holds a negative degree of a non-periodic variable")
-    need(int(magnitude.sum(axis=1).max()) <= est.degree,
+    need(bool(np.all(powers[:, ~(periodic | mixed)] >= 0)),
+         "powers_ holds a negative degree of a variable neither periodic nor mixed")
+    degrees = factor_degrees(powers.astype(np.int64), mixed)
+    need(int(degrees.sum(axis=1).max()) <= est.degree,
          f"powers_ holds a basis function of total degree above degree={est.degree}")
     n_basis = powers.shape[0]
     if name == "HamiltonianRegressor":
@@ -251,6 +261,17 @@ def check_regressor(where, est, attributes):
         need(coef.shape[0] == n_basis,
              f"coef_ has {coef.shape[0]} rows for {n_basis} basis functions")
         support_shape = coef.shape
+    if "resampled_coef_" in attributes:
+        resampled = attributes["resampled_coef_"]
+        need(resampled.shape == (est.n_resamples,) + coef.shape,
+             f"resampled_coef_ has shape {resampled.shape}, expected "
+             f"{(est.n_resamples,) + coef.shape} (n_resamples={est.n_resamples})")
+    if "resampled_damping_" in attributes:
+        need(name == "HamiltonianRegressor" and est.damping,
+             "resampled_damping_ is present without damping=True")
+        need(attributes["resampled_damping_"].shape == (est.n_resamples, n // 2),
+             f"resampled_damping_ has shape {attributes['resampled_damping_'].shape}, "
+             f"expected ({est.n_resamples}, {n // 2})")
     for key in ("state_scale_", "_state_magnitude"):
         if key in attributes:
             need(attributes[key].shape == (n,), f"{key} has shape {attributes[key].shape}, "
@@ -270,6 +291,11 @@ def check_regressor(where, est, attributes):
              else np.asarray(est.periodic).astype(bool))
     need(given.shape == periodic.shape and np.array_equal(given, periodic),
          "periodic_ differs from the periodic parameter")
+    if "mixed_" in attributes:
+        given = (np.zeros(n, dtype=bool) if est.mixed is None
+                 else np.asarray(est.mixed).astype(bool))
+        need(given.shape == mixed.shape and np.array_equal(given, mixed),
+             "mixed_ differs from the mixed parameter")
 
 
 def check_transformer(where, est, attributes):
