@@ -318,7 +318,7 @@ def _rounded(value, half):
         return f"{value:.6g}", "0"
     first = math.floor(math.log10(half))
     # Two digits of a half-width that starts with 1 (0.0016, not 0.002).
-    first -= int(f"{half:.0e}"[0] == "1")
+    first -= int(half < 2 * 10.0**first)
     digits = (math.floor(math.log10(value)) if value > 0 else first) - first + 1
     digits = min(max(digits, 1), 6)
     if 1e-4 <= value < 1e6:
@@ -331,7 +331,7 @@ def _one_digit(half, first):
     """``half`` to the digit ``10**first``."""
     if -5 <= first < 6:
         return f"{round(half, -first):.{max(0, -first)}f}"
-    return f"{half:.{2 if f'{half:.0e}'[0] == '1' else 1}g}"
+    return f"{half:.{2 if half < 2 * 10.0 ** (first + 1) else 1}g}"
 
 
 def _summary(spread, terms, level):
