@@ -14,6 +14,7 @@ from sk_hamiltonian import (
     _design,
     _resampling,
 )
+from sk_hamiltonian._cli import main
 from sk_hamiltonian._resampling import resample_weights
 from sk_hamiltonian._trajectories import pack_derivatives
 from sk_hamiltonian.datasets import double_well, make_trajectories, single_pendulum
@@ -272,3 +273,38 @@ def test_mixed_model_file_round_trip(tmp_path):
     assert np.array_equal(loaded.mixed_, [False, True])
     assert np.array_equal(loaded.predict(X), model.predict(X))
     assert format_hamiltonian(loaded) == format_hamiltonian(model)
+
+
+# The command: one candidate of the quick example, so that each run takes seconds.
+QUICK_ONE = ["--quick", "--paper-grid", "--degrees", "4", "--denoise-degrees", "5",
+             "--threshold", "0.01"]
+
+
+def test_command_resamples_its_choice_and_show_prints_the_intervals(tmp_path, capsys):
+    assert main(QUICK_ONE + ["--output", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert re.search(r"^resampling: 100 bootstrap resamples of the 60 trajectories", out, re.M)
+    learned = re.search(r"^learned: (H~ = .*)$", out, re.M).group(1)
+    assert "(±" in learned and learned.endswith("(90% intervals)")
+    model = sk_hamiltonian.load(tmp_path / "model.skh")
+    regressor = model[-1]
+    assert regressor.n_resamples == 100
+    assert regressor.resampled_coef_.shape == (100, regressor.powers_.shape[0])
+    assert format_hamiltonian(regressor, intervals=True) == learned
+    assert main(["show", str(tmp_path / "model.skh")]) == 0
+    shown = capsys.readouterr().out
+    assert f"learned: {learned}" in shown
+    assert "resampling: 100 bootstrap resamples of whole trajectories (seed 0)" in shown
+
+
+def test_command_without_resampling(tmp_path, capsys):
+    assert main(QUICK_ONE + ["--no-resample", "--output", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert "resampling:" not in out and "(±" not in out
+    regressor = sk_hamiltonian.load(tmp_path / "model.skh")[-1]
+    assert regressor.n_resamples == 0 and not hasattr(regressor, "resampled_coef_")
+    with pytest.raises(SystemExit) as exit_info:
+        main(QUICK_ONE + ["--resamples", "-1", "--output", str(tmp_path)])
+    assert exit_info.value.code == 2
+    assert "--resamples must be 0 (off) or more; got -1" in capsys.readouterr().err
+

@@ -41,8 +41,8 @@ def resample_chosen(args, data, best):
     print(
         f"resampling: {counted(n, 'bootstrap resample')} of the {n_trajectories} {unit}, "
         f"each refitted with the chosen threshold, in {seconds:.1f} s; the intervals "
-        f"below are their 90% percentile intervals (they show the spread from one "
-        f"sample of {unit} to another, not the bias of the derivative estimate)"
+        f"below are their 90% percentile intervals (the spread from one sample of {unit} "
+        f"to another, not a bias every sample shares, such as the de-noising's)"
     )
     return seconds
 
