@@ -280,6 +280,11 @@ def format_hamiltonian(model, *, state_names=None, max_terms=8, intervals=False)
     spread = None
     if intervals is not False and intervals is not None:
         level = 0.9 if intervals is True else intervals
+        if isinstance(level, bool) or not (isinstance(level, Real) and 0 < level < 1):
+            raise ValueError(
+                f"intervals must be True (90% intervals), False, or a level in (0, 1); got "
+                f"{intervals!r}."
+            )
         spread = {t.powers: t for t in term_intervals(model, level=level,
                                                       state_names=state_names)}
     if not terms:
@@ -420,8 +425,7 @@ def term_intervals(model, *, level=0.9, state_names=None, rtol=1e-9):
     """
     _check_resampled(model)
     resampled = model.resampled_coef_
-    if not (isinstance(level, Real) and 0 < level < 1):
-        raise ValueError(f"level must be a number in (0, 1), e.g. 0.9; got {level!r}.")
+    _check_level(level)
     readable = _Readable(model, state_names)
     coef = readable.from_fitting @ np.asarray(resampled).reshape(resampled.shape[0], -1).T
     kept = readable.kept(coef, rtol)
@@ -540,8 +544,7 @@ def prediction_band(model, x0, t, *, level=0.9, max_step=None):
     from ._integrate.simulation import check_initial_states, check_max_step, check_time
 
     _check_resampled(model)
-    if not (isinstance(level, Real) and 0 < level < 1):
-        raise ValueError(f"level must be a number in (0, 1), e.g. 0.9; got {level!r}.")
+    _check_level(level)
     x0, single = check_initial_states(x0, model.n_features_in_)
     if not single:
         raise ValueError(f"x0 must be one state of shape ({model.n_features_in_},).")
@@ -560,6 +563,11 @@ def prediction_band(model, x0, t, *, level=0.9, max_step=None):
     for edge in (low, median, high):
         edge[missing] = np.nan
     return low, median, high
+
+
+def _check_level(level):
+    if isinstance(level, bool) or not (isinstance(level, Real) and 0 < level < 1):
+        raise ValueError(f"level must be a number in (0, 1), e.g. 0.9; got {level!r}.")
 
 
 def _check_resampled(model):

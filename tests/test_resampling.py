@@ -256,9 +256,11 @@ def test_bad_input_says_what_to_do(pendulum):
         with pytest.raises(ValueError, match="without resampling.*n_resamples=100"):
             call()
     model = resampled(pendulum, n_resamples=3)
-    for level in (0, 1, 1.5):
+    for level in (0, 1, 1.5, True):
         with pytest.raises(ValueError, match="level must be a number in"):
             term_intervals(model, level=level)
+    with pytest.raises(ValueError, match="intervals must be True .* got 'yes'"):
+        format_hamiltonian(model, intervals="yes")
 
 
 def test_mixed_model_file_round_trip(tmp_path):
