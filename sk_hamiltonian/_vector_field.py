@@ -93,7 +93,7 @@ class VectorFieldRegressor(BaseTrajectoryRegressor):
         Which variables are mixed.
     domain_ : ndarray of shape (n_states, 2)
         The box the basis lives on.
-    resampled_coef_ : ndarray of shape (n_resamples,) + coef_.shape
+    resampled_coef_ : ndarray of shape (n_resamples, n_basis, n_outputs) or (n_resamples, n_basis)
         With ``n_resamples > 0``: each refit's coefficients on a resample of
         the trajectories (zero off its support).
     cond_ : float

@@ -1,6 +1,6 @@
 """
 How sure is the formula: term inclusion and intervals from resampled trajectories
-================================================================================
+=================================================================================
 
 A sparse fit of the paper's noisy pendulum prints ``H~ = -9.80 cos(q) + 0.4995
 p^2``. With ``n_resamples=100`` the regressor also refits the model on 100

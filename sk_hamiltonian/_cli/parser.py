@@ -45,11 +45,12 @@ of them (blocked cross-validation). The chosen model is then refitted on 100
 bootstrap resamples of whole trajectories (--resamples, --no-resample), which
 give each term of H~ how often it is kept and a 90 % interval for its
 coefficient, and the figure a prediction band. The report gives the choice,
-the learned H~ with those intervals, the fit time, the trend of H~ along the data (a conservation check), the
-H~ drift along a simulated trajectory (RK4 and the energy-conserving
-averaged vector field) and, for the built-in example, the relative error at
-T against the true system of the structure-preserving model (SP) and of the
-component-wise baseline (non-SP, same space and degree, every term).
+the learned H~ with those intervals, the fit time, the trend of H~ along the
+data (a conservation check), the H~ drift along a simulated trajectory (RK4
+and the energy-conserving averaged vector field) and, for the built-in
+example, the relative error at T against the true system of the
+structure-preserving model (SP) and of the component-wise baseline (non-SP,
+same space and degree, every term).
 """
 
 EPILOG = """\
