@@ -262,16 +262,18 @@ def check_regressor(where, est, attributes):
              f"coef_ has {coef.shape[0]} rows for {n_basis} basis functions")
         support_shape = coef.shape
     if "resampled_coef_" in attributes:
+        # One row per refit; n_resamples may have been set after the fit.
         resampled = attributes["resampled_coef_"]
-        need(resampled.shape == (est.n_resamples,) + coef.shape,
-             f"resampled_coef_ has shape {resampled.shape}, expected "
-             f"{(est.n_resamples,) + coef.shape} (n_resamples={est.n_resamples})")
+        need(resampled.shape[0] >= 1 and resampled.shape[1:] == coef.shape,
+             f"resampled_coef_ has shape {resampled.shape}, expected (n_resamples >= 1,) + "
+             f"{coef.shape}")
     if "resampled_damping_" in attributes:
         need(name == "HamiltonianRegressor" and est.damping,
              "resampled_damping_ is present without damping=True")
-        need(attributes["resampled_damping_"].shape == (est.n_resamples, n // 2),
+        rows = attributes.get("resampled_coef_", np.zeros((0,))).shape[0]
+        need(attributes["resampled_damping_"].shape == (rows, n // 2),
              f"resampled_damping_ has shape {attributes['resampled_damping_'].shape}, "
-             f"expected ({est.n_resamples}, {n // 2})")
+             f"expected ({rows}, {n // 2}), a row per refit of resampled_coef_")
     for key in ("state_scale_", "_state_magnitude"):
         if key in attributes:
             need(attributes[key].shape == (n,), f"{key} has shape {attributes[key].shape}, "

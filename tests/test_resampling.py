@@ -310,3 +310,23 @@ def test_command_without_resampling(tmp_path, capsys):
     assert exit_info.value.code == 2
     assert "--resamples must be 0 (off) or more; got -1" in capsys.readouterr().err
 
+
+
+def test_model_file_checks_the_resampled_shapes(pendulum):
+    from sk_hamiltonian._io_schema import check_regressor
+    from sk_hamiltonian.io import ModelFileError
+
+    model = resampled(pendulum, n_resamples=4, damping=True, threshold=0.0)
+    attributes = {k: v for k, v in vars(model).items() if k.endswith("_")}
+    check_regressor("the file", model, attributes)  # as fitted: accepted
+    for key, value, message in (
+        ("resampled_coef_", model.resampled_coef_[:, :-1], "resampled_coef_ has shape"),
+        ("resampled_damping_", model.resampled_damping_[:2], "resampled_damping_ has shape"),
+    ):
+        with pytest.raises(ModelFileError, match=message):
+            check_regressor("the file", model, {**attributes, key: value})
+    undamped = resampled(pendulum, n_resamples=4)
+    with pytest.raises(ModelFileError, match="resampled_damping_ is present without damping"):
+        check_regressor("the file", undamped, {**attributes, "coef_": undamped.coef_,
+                                               "powers_": undamped.powers_,
+                                               "damping_": np.zeros(1)})
