@@ -22,6 +22,7 @@ from . import _fit_steps as steps
 from ._distributed import fit_distributed, is_dask
 from ._integrate import make_integrator, simulation
 from ._least_squares import solve
+from ._resampling import RESAMPLE_KINDS, check_resampling, fit_resamples
 from ._scoring import rollout_score
 from ._space import ModelSpace
 from ._space.builder import space_index_set
@@ -62,6 +63,10 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
         "threshold": [Interval(Real, 0, None, closed="left")],
         "solver": [StrOptions({"auto", "lstsq", "normal", "iterative", "sketch"})],
         "verbose": ["verbose"],
+        "n_resamples": [Interval(Integral, 0, None, closed="left")],
+        "resample": [StrOptions(set(RESAMPLE_KINDS))],
+        "random_state": ["random_state"],
+        "n_jobs": [Integral, None],
     }
 
     #: Whether the basis holds the constant (set by subclasses).
@@ -70,7 +75,8 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
     def __init__(
         self, degree=3, *, domain=None, periodic=None, mixed=None, momentum_degree=None,
         separable=False, max_interaction=None, couplings=None, fit_on="derivatives",
-        threshold=0.0, solver="auto", verbose=0,
+        threshold=0.0, solver="auto", verbose=0, n_resamples=0, resample="bootstrap",
+        random_state=None, n_jobs=None,
     ):
         self.degree = degree
         self.domain = domain
@@ -84,6 +90,10 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
         self.threshold = threshold
         self.solver = solver
         self.verbose = verbose
+        self.n_resamples = n_resamples
+        self.resample = resample
+        self.random_state = random_state
+        self.n_jobs = n_jobs
 
     # ------------------------------------------------------------------ fit
     @_fit_context(prefer_skip_nested_validation=True)
@@ -110,10 +120,14 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
             The fitted estimator.
         """
         self._check_integer_params()
+        self._clear_resampled()
         if is_dask(X) or is_dask(y):
+            self._check_no_resampling("a fit on dask arrays")
             return fit_distributed(self, X, y, sample_weight)
         self._partial = None
         data = self._training_data(X, y, sample_weight)
+        if self.n_resamples:
+            check_resampling(self, data)
         space = steps.build_space(self, data)
         design = self._design(space)
         solver = steps.choose(self, design, data)
@@ -127,7 +141,28 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
                 fall_back=self.solver == "auto", progress=self._progress,
                 name=type(self).__name__,
             )
-        return steps.set_fitted(self, space, solution, data, solver=solver)
+        steps.set_fitted(self, space, solution, data, solver=solver)
+        if self.n_resamples:
+            # Refits on resampled trajectories, from the normal equations of
+            # each trajectory (one more pass over the data; _resampling).
+            with limit_blas(gram_flops(design.n_rows(data), design.n_columns)):
+                self._set_resampled(fit_resamples(self, space, data))
+        return self
+
+    def _check_no_resampling(self, what):
+        """Refuse ``n_resamples > 0`` where the trajectories are not at hand."""
+        if isinstance(self.n_resamples, Integral) and self.n_resamples > 0:
+            raise ValueError(
+                f"{type(self).__name__}: n_resamples={self.n_resamples} refits on resamples "
+                f"of the training trajectories, which {what} does not keep. Fit on "
+                f"trajectories in memory (fit with the derivative layout), or set "
+                f"n_resamples=0."
+            )
+
+    def _clear_resampled(self):
+        """Drop the resampling of an earlier fit (a refit with ``n_resamples=0`` has none)."""
+        for name in ("resampled_coef_", "resampled_damping_"):
+            self.__dict__.pop(name, None)
 
     def _check_partial_fit(self):
         # partial_fit exists only with a fixed box: the basis (and so the
@@ -174,6 +209,8 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
             of the chunks' median steps, and the energy-trend attributes from
             the last chunk.
         """
+        self._check_no_resampling("partial_fit")
+        self._clear_resampled()
         return partial_fit_chunk(self, X, y, sample_weight)
 
     def _n_terms(self, n_states):
@@ -222,7 +259,7 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
     # ----------------------------------------------------------- validation
     def _check_integer_params(self):
         # scikit-learn's Interval(Integral) lets booleans through; True is no degree.
-        for name in ("degree", "momentum_degree", "max_interaction"):
+        for name in ("degree", "momentum_degree", "max_interaction", "n_resamples"):
             value = getattr(self, name)
             if isinstance(value, (bool, np.bool_)):
                 raise InvalidParameterError(
@@ -476,6 +513,10 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
     def _set_coef(self, coef):
         """Set the fitted coefficients from the solution vector."""
         raise NotImplementedError
+
+    def _set_resampled(self, coef):
+        """Set the resampled refits' coefficients, one solution vector per row."""
+        self.resampled_coef_ = coef
 
     def _vector_field(self, X):
         raise NotImplementedError

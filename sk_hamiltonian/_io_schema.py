@@ -113,6 +113,9 @@ REGRESSOR = {
     "domain_": Array("float64", (("n", 2),), _finite, "a finite 2-D float array", casts="iu"),
     "coef_": Array("float64", (("b",), ("b", "o")), _finite, "a finite float array"),
     "support_": Array("bool", like="coef_", text="a boolean array"),
+    # The refits of n_resamples > 0: one row per refit.
+    "resampled_coef_": Array("float64", (("r", "b"), ("r", "b", "o")), _finite,
+                             "a finite float array of one row per resample"),
     "state_scale_": STATE,
     "cond_": Scalar(FLOAT, _any_float, "a float"),
     "rank_": Scalar(INT, _nonnegative_int, "a non-negative integer"),
@@ -128,6 +131,8 @@ REGRESSOR = {
 HAMILTONIAN = {
     **REGRESSOR,
     "coef_": Array("float64", (("b",),), _finite, "a finite 1-D float array"),
+    "resampled_damping_": Array("float64", (("r", "d"),), _finite_nonnegative,
+                                "a finite 2-D array of non-negative floats, a row per resample"),
     "damping_": Array("float64", (("d",),), _finite_nonnegative,
                       "a finite 1-D array of non-negative floats"),
     "energy_trend_": Scalar(FLOAT, _any_float, "a float"),
@@ -264,6 +269,8 @@ def _dimensions(model, name, values, declared, fail):
         dims["b"] = _first(declared["powers_"][1])
     if "coef_" in declared and len(declared["coef_"][1]) == 2:
         dims["o"] = declared["coef_"][1][1]
+    if "resampled_coef_" in declared:
+        dims["r"] = _first(declared["resampled_coef_"][1])
     return dims
 
 
@@ -370,6 +377,10 @@ def check_regressor(where, est, attributes, what):
     if name == "HamiltonianRegressor":
         need(est.damping or not attributes["damping_"].any(),
              "damping_ is non-zero with damping=False")
+        need("resampled_damping_" not in attributes or est.damping,
+             "resampled_damping_ is present without damping=True")
+        need(("resampled_damping_" in attributes) == (est.damping and "resampled_coef_" in attributes),
+             "resampled_damping_ and resampled_coef_ must come together with damping=True")
     if (est.momentum_degree is not None or est.separable) and n % 2:
         need(False, f"momentum_degree and separable need an even n_features_in_, not {n}")
     try:

@@ -278,19 +278,22 @@ class TrainingData:
 
     def windows_count(self, length=None, stride=None):
         """Number of weak-form windows (row groups) of :meth:`windows`."""
+        return int(self._windows_per_trajectory(length, stride).sum())
+
+    def _windows_per_trajectory(self, length=None, stride=None):
+        """Windows of each trajectory in :meth:`windows`."""
         self._check_trajectories("weak", 3)
         length = WEAK_WINDOW if length is None else length
         stride = max(1, length // WEAK_OVERLAP) if stride is None else stride
         width = min(length, max(S.shape[0] for _, S in self.trajectories))
-        count = 0
+        counts = []
         for _, S in self.trajectories:
             n = S.shape[0]
             if n <= width:
-                count += 1
+                counts.append(1)
                 continue
-            starts = (n - width) // stride + 1
-            count += starts + ((n - width) % stride != 0)
-        return count
+            counts.append((n - width) // stride + 1 + ((n - width) % stride != 0))
+        return np.array(counts, dtype=np.intp)
 
     def _check_trajectories(self, fit_on, fewest):
         if self.trajectories is None:
@@ -306,6 +309,32 @@ class TrainingData:
                 f"{len(short)} of {len(self.trajectories)} trajectories have fewer (the first "
                 f"is number {short[0]}). Drop them, or fit with fit_on='steps'."
             )
+
+    def groups_per_trajectory(self, fit_on):
+        """Row groups of each trajectory in :meth:`quadrature`, whose groups run trajectory by trajectory.
+
+        A state each (``"derivatives"``), a step each (``"steps"``), a pair
+        of steps each (``"simpson"``) or a window each (``"weak"``). Needs
+        trajectories.
+
+        Returns
+        -------
+        counts : ndarray of shape (n_trajectories,) of int
+        """
+        if self.trajectories is None:
+            raise ValueError(
+                "groups_per_trajectory needs trajectories: these training data are 2-D "
+                "states with derivatives. Build them from the derivative layout."
+            )
+        lengths = np.array([S.shape[0] for _, S in self.trajectories], dtype=np.intp)
+        if fit_on == "steps":
+            return np.maximum(lengths - 1, 0)
+        if fit_on == "simpson":
+            self._check_pairs()
+            return lengths - 2
+        if fit_on == "weak":
+            return self._windows_per_trajectory()
+        return lengths
 
     def n_rows(self, fit_on):
         """Number of state (or step) row groups the fit will have."""

@@ -7,6 +7,7 @@ from ._design import quadrature_nodes
 from ._integrate import Dynamics
 from ._integrate.compiled import KernelModel
 from ._least_squares import VectorFieldDesign
+from ._space import ModelSpace
 
 
 class VectorFieldRegressor(BaseTrajectoryRegressor):
@@ -69,6 +70,16 @@ class VectorFieldRegressor(BaseTrajectoryRegressor):
         As in :class:`HamiltonianRegressor`.
     verbose : int, default=0
         Print the progress of long fits when positive.
+    n_resamples : int, default=0
+        Refits on this many resamples of whole trajectories (derivative
+        layout input only), each component with the same ``threshold``; as
+        in :class:`HamiltonianRegressor`. 0: no resampling.
+    resample : {"bootstrap", "subsample"}, default="bootstrap"
+        Trajectories drawn with replacement, or half of them without.
+    random_state : int, RandomState instance or None, default=None
+        Seed of the resamples' draws.
+    n_jobs : int, default=None
+        Threads solving the resamples' refits; None means 1.
 
     Attributes
     ----------
@@ -84,6 +95,9 @@ class VectorFieldRegressor(BaseTrajectoryRegressor):
         Which variables are mixed.
     domain_ : ndarray of shape (n_states, 2)
         The box the basis lives on.
+    resampled_coef_ : ndarray of shape (n_resamples, n_basis, n_outputs) or (n_resamples, n_basis)
+        With ``n_resamples > 0``: each refit's coefficients on a resample of
+        the trajectories (zero off its support).
     cond_ : float
         Condition number of the column-equilibrated least-squares design
         (estimated with ``solver="iterative"`` or ``"sketch"`` and beyond
@@ -138,6 +152,19 @@ class VectorFieldRegressor(BaseTrajectoryRegressor):
 
     def _set_coef(self, coef):
         self.coef_ = coef
+
+    def _resampled_field(self):
+        """``field(Y, models)``: the vector fields of the refits ``models`` at the rows of ``Y``."""
+        self._dynamics()  # refuses a model that is no vector field
+        coef = self.resampled_coef_
+        rows = np.any(coef != 0, axis=(0, 2))
+        space = ModelSpace(self.domain_, self.powers_[rows], self.periodic_, self._mixed())
+        coef = coef[:, rows]
+
+        def field(Y, models):
+            return np.einsum("sj,sjc->sc", space.values(Y), coef[models])
+
+        return field
 
     def _vector_field(self, X):
         space = self._eval_space

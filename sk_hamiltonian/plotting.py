@@ -14,6 +14,7 @@ __all__ = [
     "plot_energy",
     "plot_errors",
     "plot_phase",
+    "plot_prediction_band",
     "plot_states",
     "plot_threshold_path",
     "plot_trajectories",
@@ -191,6 +192,66 @@ def plot_energy(t, energies, *, deviation=True, ax=None):
             ax.plot(t, H, lw=1.2, label=label)
     ax.set_xlabel("t")
     ax.set_ylabel("|H(t) - H(0)|" if deviation else "H(t)")
+    ax.legend(fontsize="small")
+    return ax
+
+
+def plot_prediction_band(model, x0, t, *, level=0.9, state_names=None, ax=None,
+                         max_step=None):
+    """Shade where the resampled refits of a model go from ``x0``: a prediction band.
+
+    The band of :func:`sk_hamiltonian.inspection.prediction_band`, one shaded
+    region per state variable in the colours of :func:`plot_trajectories`
+    (``C0``, ``C1``, ...), so that it sits under the model's own curves drawn
+    there. Needs a model fitted with ``n_resamples > 0``.
+
+    Parameters
+    ----------
+    model : HamiltonianRegressor or VectorFieldRegressor
+        Fitted with ``n_resamples > 0``.
+    x0 : array-like of shape (n_states,)
+        The initial state.
+    t : array-like of shape (n_times,)
+        Output times.
+    level : float, default=0.9
+        The band's level.
+    state_names : list of str, default=None
+        Names of the state variables, for the legend.
+    ax : matplotlib Axes, default=None
+        Where to draw; None creates a figure.
+    max_step : float, default=None
+        Largest RK4 step, as in :func:`~sk_hamiltonian.inspection.prediction_band`.
+
+    Returns
+    -------
+    ax : matplotlib Axes
+        The Axes drawn on.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from sk_hamiltonian import DerivativeTransformer, HamiltonianRegressor
+    >>> from sk_hamiltonian.datasets import make_trajectories, single_pendulum
+    >>> from sk_hamiltonian.plotting import plot_prediction_band, plot_trajectories
+    >>> X = make_trajectories(single_pendulum(), 40, 20, 0.05, noise=0.01, random_state=0)
+    >>> Xt = DerivativeTransformer(dt=0.05).fit_transform(X)
+    >>> model = HamiltonianRegressor(4, periodic=[False, True], threshold=0.03,
+    ...                              n_resamples=30, random_state=0).fit(Xt)
+    >>> t = np.linspace(0, 5, 101)
+    >>> ax = plot_trajectories(t, {"learned": model.simulate([0.0, 1.0], t)})
+    >>> ax = plot_prediction_band(model, [0.0, 1.0], t, ax=ax)
+    """
+    from .inspection import prediction_band
+
+    t = np.asarray(t, dtype=float)
+    low, _, high = prediction_band(model, x0, t, level=level, max_step=max_step)
+    ax = _axes(ax)
+    names = _state_names(low.shape[1], state_names)
+    n = model.resampled_coef_.shape[0]
+    for i, name in enumerate(names):
+        ax.fill_between(t, low[:, i], high[:, i], color=f"C{i}", alpha=0.25, lw=0,
+                        label=f"{name} ({level:.0%} band of {n} refits)")
+    ax.set_xlabel("t")
     ax.legend(fontsize="small")
     return ax
 

@@ -29,8 +29,8 @@ U = np.column_stack([np.sin(T), np.cos(T), np.sin(2 * T), np.cos(2 * T)])
 
 def test_all_lists_the_public_functions():
     assert sorted(plotting.__all__) == [
-        "plot_energy", "plot_errors", "plot_phase", "plot_states", "plot_threshold_path",
-        "plot_trajectories",
+        "plot_energy", "plot_errors", "plot_phase", "plot_prediction_band", "plot_states",
+        "plot_threshold_path", "plot_trajectories",
     ]
 
 

@@ -44,6 +44,7 @@ EXAMPLES = {
     "plot_sparse_hamiltonians": ("sparse_hamiltonians",
                                  ["sparse_threshold_path", "sparse_pendulum_errors"]),
     "plot_search": ("search", ["search_rollouts"]),
+    "plot_intervals": ("intervals", ["intervals_band"]),
 }
 
 
@@ -205,3 +206,20 @@ def test_search_finds_the_laws_in_their_spaces(runs):
         assert results["torsion"]["coefficients"][term] == pytest.approx(exact, rel=0.02), term
     # The averaged-vector-field rollouts keep H~ to round-off.
     assert results["pendulum"]["drift"] < 1e-10 and results["torsion"]["drift"] < 1e-10
+
+
+def test_intervals_keep_the_pendulum_terms_and_band_the_refits(runs):
+    results = runs[2]["plot_intervals"]
+    n = results["n_resamples"]
+    terms = results["terms"]
+    # Both true terms in every refit, each fitted coefficient inside its interval.
+    for text in ("cos(q)", "p^2"):
+        assert terms[text]["kept"] == n, text
+        assert terms[text]["low"] < terms[text]["coefficient"] < terms[text]["high"], text
+    # Any other term in at most 20 % of the refits (quick mode measured 2 of 50).
+    assert all(v["kept"] <= 0.2 * n for k, v in terms.items() if k not in ("cos(q)", "p^2"))
+    # The p^2 interval holds the truth 0.5 (quick mode: [0.4979, 0.5023]).
+    assert terms["p^2"]["low"] < 0.5 < terms["p^2"]["high"]
+    # The band starts at the one initial state and widens (quick mode: 0.56 at T = 20).
+    assert results["band_start_width"] == 0.0 and results["band_width_T20"] > 0.01
+

@@ -1,7 +1,8 @@
 """The figure of the ``sk-hamiltonian`` report (report.png).
 
 Five panels: the trajectories over the whole span, a zoomed window of them
-where they can be told apart, the phase plot, the errors against the true
+where they can be told apart (both with the resampled refits' prediction band
+when the model was resampled), the phase plot, the errors against the true
 system (or the learned energy along the rollouts), and the drift of the
 learned energy. Every legend sits below its panel, off the data.
 """
@@ -14,13 +15,16 @@ ZOOM_SHARE = 1 / 8
 ZOOM_MIN_STEPS = 10
 
 
-def draw_report(path, t, curves, truth, errors, model, rk4, avf, observed, names, title):
+def draw_report(path, t, curves, truth, errors, model, rk4, avf, observed, names, title,
+                band=None):
     """Write the figure of the command's report to ``path``.
 
     ``curves`` maps a label ("SP", "non-SP") to ``(states, n_valid_times)``
     of a rollout; ``truth`` is the true system's trajectory or None;
     ``observed`` is ``(times, states)``: the time stamps of the first
-    trajectory relative to its start, and the states of every trajectory.
+    trajectory relative to its start, and the states of every trajectory;
+    ``band`` is ``(low, high)``, the resampled refits' prediction band along
+    ``t``, shaded under the trajectories, or None.
     """
     # A bare Figure, not pyplot: no GUI backend, no global state touched.
     from matplotlib.figure import Figure
@@ -49,11 +53,13 @@ def draw_report(path, t, curves, truth, errors, model, rk4, avf, observed, names
     start, stop = _zoom_window(t, times, truth is not None)
     ax = axes["trajectories"]
     _draw_trajectories(ax, t, shown, names, truth, times, states)
+    _draw_band(ax, t, band, model)
     ax.axvspan(start, stop, color="0.92", zorder=0, label="zoomed below")
     _legend_below(ax, ncols=len(shown) + 1)
     _note_left(ax, _frame(ax.set_ylim, reference.values(), runaway))
     zoom = axes["zoom"]
     _draw_trajectories(zoom, t, shown, names, truth, times, states)
+    _draw_band(zoom, t, band, model)
     zoom.get_legend().remove()  # the same curves as above, and their legend
     zoom.set_xlim(start, stop)
     inside, seen = (t >= start) & (t <= stop), (times >= start) & (times <= stop)
@@ -100,6 +106,17 @@ def draw_report(path, t, curves, truth, errors, model, rk4, avf, observed, names
     _legend_below(axes["drift"], ncols=2)
     fig.suptitle(title, fontsize="medium")
     fig.savefig(path, dpi=110)
+
+
+def _draw_band(ax, t, band, model):
+    """Shade the prediction band of the resampled refits, one colour per state variable."""
+    if band is None:
+        return
+    low, high = band
+    n = model.resampled_coef_.shape[0]
+    for i in range(low.shape[1]):
+        ax.fill_between(t, low[:, i], high[:, i], color=f"C{i}", alpha=0.2, lw=0,
+                        label=f"90% band of {n} resampled refits" if i == 0 else None)
 
 
 def _energy(model, t, run):

@@ -19,6 +19,7 @@ from .figure import draw_report
 from .parser import MODEL_FILE, check_options
 from .report import describe_energy_trend, print_choice, print_drift, print_errors
 from .discovery import run_discovery
+from .resampling import band_or_none, resample_chosen
 from .search import run_search
 from .words import counted
 
@@ -37,7 +38,9 @@ def run(args):
     best = result.best
     model = best[-1]
     print_choice(result)
-    print(f"learned: {format_hamiltonian(model, state_names=names)}")
+    resample_time = resample_chosen(args, data, best)
+    intervals = resample_time is not None
+    print(f"learned: {format_hamiltonian(model, state_names=names, intervals=intervals)}")
     print(
         f"fit time: {result.fit_time:.1f} s for {result.n_fits} "
         f"cross-validation fits and the refit"
@@ -72,6 +75,7 @@ def run(args):
     if system is not None:
         truth = system.solve(x0, t, max_step=data.step / 10)
         errors = print_errors(t, curves, truth)
+    band = band_or_none(model, x0, t)
     with warnings.catch_warnings():
         # Where the rollouts leave the training box was said above (or shows
         # as a failure); evaluating H~ along them need not repeat it.
@@ -79,7 +83,7 @@ def run(args):
         print_drift(t, model, {"RK4": rk4, "AVF": avf})
 
     model_path = os.path.join(args.output, MODEL_FILE)
-    save(best, model_path, provenance=_provenance(args, data, result))
+    save(best, model_path, provenance=_provenance(args, data, result, resample_time))
     print(
         f"\nmodel: {model_path} (a fitted Pipeline; sk-hamiltonian show {model_path}, or "
         f"sk_hamiltonian.load in Python)"
@@ -103,7 +107,8 @@ def run(args):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", DomainWarning)
         draw_report(
-            figure_path, t, curves, truth, errors, model, rk4, avf, observed, names, data.title
+            figure_path, t, curves, truth, errors, model, rk4, avf, observed, names, data.title,
+            band=band,
         )
     print(f"figure: {figure_path}")
     return 0
@@ -126,8 +131,8 @@ def _prepare_output(directory):
         ) from None
 
 
-def _provenance(args, data, result):
-    """What the model file records about the data and the search."""
+def _provenance(args, data, result, resample_time=None):
+    """What the model file records about the data, the search and the resampling."""
     lengths = [len(T) for T in data.X]
     i = result.best_index
     return {
@@ -146,6 +151,12 @@ def _provenance(args, data, result):
             f"{result.cv_results['std_test_score'][i]:.4f} over the folds"
         ),
         "damping": bool(args.damping),
+        "resampling": (
+            "none" if resample_time is None else
+            f"{args.resamples} bootstrap resamples of whole "
+            f"{'segments' if data.groups is not None else 'trajectories'} (seed {args.seed}), "
+            f"{resample_time:.1f} s"
+        ),
     }
 
 

@@ -160,7 +160,11 @@ def show(argv):
     if hasattr(regressor, "hamiltonian"):
         from ..inspection import format_hamiltonian, hamiltonian_terms
 
-        print(f"learned: {format_hamiltonian(regressor, state_names=names)}")
+        resampled = getattr(regressor, "resampled_coef_", None) is not None
+        print(f"learned: {format_hamiltonian(regressor, state_names=names, intervals=resampled)}")
+        if resampled:
+            print(f"  (the intervals: {regressor.resampled_coef_.shape[0]} refits on "
+                  f"{regressor.resample} resamples of whole trajectories, stored in the file)")
         terms = hamiltonian_terms(regressor, state_names=names)
         print(f"terms ({len(terms)} in the monomial view, {regressor.powers_.shape[0]} basis "
               f"functions; largest first):")

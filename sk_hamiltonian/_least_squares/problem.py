@@ -163,6 +163,63 @@ class Design:
         gram, rhs = accumulator.result()
         return gram, rhs, accumulator.btb
 
+    def trajectory_normal_equations(self, data):
+        """``(A_k^T A_k, A_k^T b_k, b_k^T b_k)`` of every trajectory ``k`` of ``data``, in one pass.
+
+        The rows of a trajectory are a contiguous run of row groups of the
+        quadrature (:meth:`~sk_hamiltonian._training_data.TrainingData.groups_per_trajectory`);
+        within a block of :meth:`blocks` row ``j * n + s`` is row ``j`` of the
+        block's sample ``s`` (its ``n`` samples by ``rows_per_sample``
+        rows), so each trajectory's rows are a slice of every block. The sum
+        over trajectories is :meth:`normal_equations` (by the plain route:
+        every row against every column), and a weighted sum is the normal
+        equations of the trajectories weighted so (the resampling of
+        :mod:`sk_hamiltonian._resampling`).
+
+        Parameters
+        ----------
+        data : TrainingData
+            With trajectories (the derivative layout).
+
+        Returns
+        -------
+        grams : ndarray of shape (n_trajectories, n_columns, n_columns)
+        rhs : ndarray of shape (n_trajectories, n_columns) or (n_trajectories, n_columns, n_targets)
+        btb : ndarray of shape (n_trajectories,) or (n_trajectories, n_targets, n_targets)
+        """
+        counts = data.groups_per_trajectory(self.fit_on)
+        ends = np.cumsum(counts)
+        n_trajectories, c = counts.size, self.n_columns
+        per_sample = self.rows_per_sample(data.states.shape[1])
+        grams = np.zeros((n_trajectories, c, c))
+        rhs = btb = None
+        start = 0  # the block's first sample
+        for A, b in self.blocks(data):
+            n = A.shape[0] // per_sample
+            rows = A.T.reshape(c, per_sample, n)
+            targets = b.reshape((per_sample, n) + b.shape[1:])
+            if rhs is None:
+                rhs = np.zeros((n_trajectories, c) + b.shape[1:])
+                btb = np.zeros((n_trajectories,) + b.shape[1:] * 2)
+            # The trajectories with samples in this block, and their slices of it.
+            first = int(np.searchsorted(ends, start, side="right"))
+            last = int(np.searchsorted(ends, start + n, side="left"))
+            for k in range(first, min(last, n_trajectories - 1) + 1):
+                low = max(int(ends[k] - counts[k]), start) - start
+                high = min(int(ends[k]), start + n) - start
+                if high <= low:
+                    continue
+                part = rows[:, :, low:high].reshape(c, -1)
+                target = targets[:, low:high].reshape((-1,) + b.shape[1:])
+                grams[k] += part @ part.T
+                rhs[k] += part @ target
+                btb[k] += target.T @ target
+            start += n
+        if rhs is None:
+            rhs = np.zeros((n_trajectories, c))
+            btb = np.zeros(n_trajectories)
+        return grams, rhs, btb
+
     def residual(self, data):
         """``residual(keep)``: refinement of a solve from normal equations against this design on ``data``.
 
