@@ -312,21 +312,25 @@ def test_command_without_resampling(tmp_path, capsys):
 
 
 
-def test_model_file_checks_the_resampled_shapes(pendulum):
-    from sk_hamiltonian._io_schema import check_regressor
+def test_model_file_checks_the_resampled_shapes(pendulum, tmp_path):
+    import copy
+
+    from sk_hamiltonian import load, save
     from sk_hamiltonian.io import ModelFileError
 
     model = resampled(pendulum, n_resamples=4, damping=True, threshold=0.0)
-    attributes = {k: v for k, v in vars(model).items() if k.endswith("_")}
-    check_regressor("the file", model, attributes)  # as fitted: accepted
-    for key, value, message in (
-        ("resampled_coef_", model.resampled_coef_[:, :-1], "resampled_coef_ has shape"),
-        ("resampled_damping_", model.resampled_damping_[:2], "resampled_damping_ has shape"),
-    ):
-        with pytest.raises(ModelFileError, match=message):
-            check_regressor("the file", model, {**attributes, key: value})
-    undamped = resampled(pendulum, n_resamples=4)
+    save(model, tmp_path / "valid.skh")
+    np.testing.assert_array_equal(load(tmp_path / "valid.skh").resampled_coef_,
+                                  model.resampled_coef_)  # as fitted: accepted
+    for key, value in (("resampled_coef_", model.resampled_coef_[:, :-1]),
+                       ("resampled_damping_", model.resampled_damping_[:2])):
+        broken = copy.deepcopy(model)
+        setattr(broken, key, value)
+        save(broken, tmp_path / "broken.skh")
+        with pytest.raises(ModelFileError, match=key):
+            load(tmp_path / "broken.skh")
+    undamped = copy.deepcopy(resampled(pendulum, n_resamples=4))
+    undamped.resampled_damping_ = np.zeros((4, 1))
+    save(undamped, tmp_path / "undamped.skh")
     with pytest.raises(ModelFileError, match="resampled_damping_ is present without damping"):
-        check_regressor("the file", undamped, {**attributes, "coef_": undamped.coef_,
-                                               "powers_": undamped.powers_,
-                                               "damping_": np.zeros(1)})
+        load(tmp_path / "undamped.skh")
