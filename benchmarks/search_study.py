@@ -277,35 +277,69 @@ def geometric_mean(values):
     return float(np.exp(np.mean(np.log(values)))) if np.all(np.isfinite(values)) else math.inf
 
 
+def _rows(output, name, method, seeds):
+    rows = {}
+    for seed in seeds:
+        path = output / f"{name}_{seed}_{method}.pkl"
+        if path.exists():
+            row = pickle.loads(path.read_bytes())
+            if "skipped" not in row:
+                rows[seed] = row
+    return rows
+
+
 def report(scenes, seeds, output):
+    """Print the per-seed table and the summary (also as reStructuredText); write the CSV."""
     import csv
 
-    rows = []
-    print(f"{'scene':18s} {'method':11s} {'geo. mean error':>15s} {'per seed':40s} {'terms':>10s}"
-          f" {'CPU s':>8s}")
+    rows, summary = [], []
     for name in scenes:
-        for method in METHODS:
-            results = [output / f"{name}_{seed}_{method}.pkl" for seed in seeds]
-            results = [pickle.loads(p.read_bytes()) for p in results if p.exists()]
-            results = [r for r in results if "skipped" not in r]
-            if not results:
-                continue
-            errors = [r["error"] for r in results]
-            terms = [r.get("n_terms") for r in results]
-            seconds = [r.get("seconds", math.nan) for r in results]
-            print(f"{name:18s} {method:11s} {geometric_mean(errors):15.4f} "
-                  f"{' '.join(f'{e:.3g}' for e in errors):40s} "
-                  f"{'/'.join(str(t) for t in terms):>10s} {np.median(seconds):8.1f}")
-            for seed, r in zip(seeds, results):
+        by_method = {method: _rows(output, name, method, seeds) for method in METHODS}
+        for method, results in by_method.items():
+            for seed, r in results.items():
                 rows.append(dict(scene=name, method=method, seed=seed, error=r["error"],
                                  n_terms=r.get("n_terms"), cpu_seconds=r.get("seconds"),
                                  exact_support=r.get("exact_support", ""),
                                  formula=r.get("formula", "")))
+        search = by_method["search"]
+        if not search:
+            continue
+        line = dict(scene=name, seeds=len(search))
+        line["exact"] = sum(bool(r["exact_support"]) for r in search.values())
+        line["terms"] = "/".join(str(r["n_terms"]) for r in search.values())
+        for method, results in by_method.items():
+            line[method] = geometric_mean([r["error"] for r in results.values()]) \
+                if results else math.nan
+        common = [s for s in search if s in by_method["oracle"]]
+        line["pick/best"] = geometric_mean(
+            [search[s]["error"] / by_method["oracle"][s]["error"] for s in common]) \
+            if common else math.nan
+        paired = [s for s in search if s in by_method["paper-grid"]]
+        line["search_s"] = float(np.median([search[s]["seconds"] for s in search]))
+        line["grid_s"] = float(np.median([by_method["paper-grid"][s]["seconds"]
+                                          for s in paired])) if paired else math.nan
+        line["time ratio"] = float(np.median([search[s]["seconds"]
+                                              / by_method["paper-grid"][s]["seconds"]
+                                              for s in paired])) if paired else math.nan
+        summary.append(line)
+        print(f"\n{name}:")
+        for method, results in by_method.items():
+            if results:
+                print(f"  {method:11s} " + " ".join(
+                    f"{seed}:{r['error']:.3g}({r.get('n_terms', '-')})"
+                    for seed, r in results.items()))
+    keys = ["scene", "seeds", "exact", "terms", "search", "oracle", "pick/best", "paper-grid",
+            "sindy", "sindy-weak", "search_s", "grid_s", "time ratio"]
+    print("\n" + "  ".join(f"{k:>12s}" for k in keys))
+    for line in summary:
+        print("  ".join(f"{line[k]:>12.4g}" if isinstance(line[k], float) else f"{line[k]!s:>12s}"
+                        for k in keys))
     if rows:
         with open(output / "search_study.csv", "w", newline="") as handle:
             writer = csv.DictWriter(handle, fieldnames=list(rows[0]))
             writer.writeheader()
             writer.writerows(rows)
+    return summary
 
 
 def main(argv=None):

@@ -65,8 +65,9 @@ def test_default_example_finds_the_law(demo):
     assert "kept: [{'periodic': [False, True], 'momentum_degree': 2}]" in out
     chosen = re.search(r"^chosen: (.*) -> (\d+) terms? \(score", out, re.M)
     assert chosen and "periodic q, mechanical" in chosen.group(1) and chosen.group(2) == "2", out
-    learned = re.search(r"^learned: H~ = (-9\.\d+) cos\(q\) \+ (0\.\d+) p\^2 \+ const$", out,
-                        re.M)
+    # With the resampling's intervals after each coefficient (docs/intervals.rst).
+    learned = re.search(r"^learned: H~ = (-9\.\d+) \(±\S+\) cos\(q\) \+ (0\.\d+) \(±\S+\) p\^2 "
+                        r"\+ const; every term kept in 100/100 resamples", out, re.M)
     assert learned, out
     # Within 3 % of g = 9.8 and 1/2 from 60 trajectories with 8 % noise.
     assert abs(float(learned.group(1)) + 9.8) < 0.3 and abs(float(learned.group(2)) - 0.5) < 0.015
@@ -107,8 +108,8 @@ def test_paper_grid_example_report(paper_demo):
         assert model[0].method == "finite_difference"
     # The learned pendulum H~ leads with its harmonic part, g q^2 / 2 + p^2 / 2
     # (within the noise), ahead of the higher-order terms of 1 - cos q.
-    assert 4.4 < number(r"H~ = (\S+) q\^2 ", out) < 5.4
-    assert 0.4 < number(r"H~ = \S+ q\^2 \+ (\S+) p\^2 ", out) < 0.6
+    assert 4.4 < number(r"H~ = (\S+) (?:\(±\S+\) )?q\^2 ", out) < 5.4
+    assert 0.4 < number(r"H~ = \S+ (?:\(±\S+\) )?q\^2 \+ (\S+) (?:\(±\S+\) )?p\^2 ", out) < 0.6
     sp = number(r"SP\s+relative error at T: (\S+)", out)
     non_sp = number(r"non-SP\s+relative error at T: (\S+)", out)
     assert 0 < sp < 1 and non_sp > 0
@@ -204,15 +205,16 @@ def test_csv_file_with_unequal_lengths_and_names(tmp_path, capsys, pendulum_data
     )
     assert status == 0
     assert "40 trajectories x 20-30 samples" in out
-    assert re.search(r"H~ = \d\.\d+ angle\^2 \+ 0\.\d+ mom\^2 ", out), out
+    assert re.search(r"H~ = \d\.\d+ (?:\(±\S+\) )?angle\^2 \+ 0\.\d+ (?:\(±\S+\) )?mom\^2 ",
+                     out), out
     # The default search names the angle in its readable terms.
     status, out, _ = run(
         [str(path), "--dt", "0.02", "--output", str(tmp_path), "--degrees", "6",
          "--denoise-degrees", "fd", "--cv", "4", "--horizon", "2"], capsys,
     )
     assert status == 0
-    assert re.search(r"^learned: H~ = -9\.\d+ cos\(angle\) \+ 0\.\d+ mom\^2 \+ const$", out,
-                     re.M), out
+    assert re.search(r"^learned: H~ = -9\.\d+ \(±\S+\) cos\(angle\) \+ 0\.\d+ \(±\S+\) mom\^2 "
+                     r"\+ const;", out, re.M), out
     assert "up to T = 2 " in out
 
 
