@@ -104,10 +104,12 @@ class HamiltonianSearchCV(BaseEstimator):
        spaces, degrees and thresholds honestly, since they are all measured
        against the same targets. The spaces whose best candidate ties with
        the best one are kept (at most three: the smallest models first).
-    2. **Search** every layout and fit target in the kept spaces, at every
-       degree and threshold; within each layout and fit target the candidate
-       with the fewest terms among those tied with the lowest mean equation
-       error (one paired standard error) is that pair's *finalist*.
+    2. **Search** every layout and fit target in the kept spaces, degree by
+       degree from the smallest (a degree no better than the best below it,
+       within one standard error, ends the space's search), at every
+       threshold; within each layout and fit target the candidate with the
+       fewest terms among those tied with the lowest mean equation error (one
+       standard error) is that pair's *finalist*.
     3. **Score** the finalists by the regressors' default rollout score
        against the held-out raw observations (which never sees the
        derivatives or smoothed states being compared), and choose by
@@ -122,7 +124,8 @@ class HamiltonianSearchCV(BaseEstimator):
         Derivative layouts: second-order finite differences, or de-noising
         polynomials of these degrees ``Q``.
     degrees : sequence of int, default=(4, 6, 8, 10)
-        Degrees ``n`` of ``H~``. Degrees with fewer than two training
+        Degrees ``n`` of ``H~``, tried from the smallest until one is no
+        better than those below it. Degrees with fewer than two training
         equations per unknown in some fold are left out.
     spaces : "auto" or list of dict, default="auto"
         Model spaces, as parameters of
@@ -543,35 +546,37 @@ def _unit(Xt, folds, spaces, fit_on, degrees, thresholds, damping, domain, denoi
     n_folds = len(folds)
     for k, space in enumerate(spaces):
         params = {**space, "fit_on": fit_on, "damping": damping}
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            try:
-                problem = FoldProblems(params, Xt, folds, max(degrees), domain)
-            except ValueError as error:  # e.g. a constant variable, or no Simpson pairs
-                failures.append(str(error))
-                continue
-        problems.append(problem)
-        training = problem.n_rows * (n_folds - 1) / n_folds
+        # Degrees from the smallest, each assembled on its own: a degree whose
+        # best candidate is no better than the best below (within one standard
+        # error) ends the space's search, as the larger ones, which cost the
+        # most, would add terms the data do not need.
+        best = None
         for degree in degrees:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                try:
+                    problem = FoldProblems(params, Xt, folds, degree, domain)
+                except ValueError as error:  # e.g. a constant variable, or no Simpson pairs
+                    failures.append(str(error))
+                    break
             size = problem.n_unknowns(degree)
-            if ROWS_PER_UNKNOWN * size > training:
-                continue
-            for threshold in thresholds:
-                started = time.perf_counter()
-                errors = np.full(n_folds, np.nan)
-                with warnings.catch_warnings():
-                    warnings.simplefilter("ignore")
-                    for fold in range(n_folds):
-                        columns, solution = problem.solve(degree, threshold, fold)
-                        errors[fold] = problem.equation_error(columns, solution.coef, fold)
-                    _, solution = problem.solve(degree, threshold)
-                records.append(dict(
-                    denoise=denoise, fit_on=fit_on, space=k, degree=degree,
-                    threshold=threshold, errors=errors, n_terms=int(solution.n_kept),
-                    size=size, fit_time=(time.perf_counter() - started) / (n_folds + 1),
-                    problem=len(problems) - 1, scores=np.full(n_folds, np.nan),
-                    score_time=np.nan, tied=False,
-                ))
+            if ROWS_PER_UNKNOWN * size > problem.n_rows * (n_folds - 1) / n_folds:
+                break
+            problems.append(problem)
+            found = [_candidate(problem, degree, threshold, n_folds)
+                     for threshold in thresholds]
+            for record in found:
+                record.update(denoise=denoise, fit_on=fit_on, space=k, size=size,
+                              problem=len(problems) - 1)
+            records.extend(found)
+            errors = np.array([r["errors"] for r in found])
+            here = int(np.nanargmin(errors.mean(axis=1))) if np.isfinite(errors).any() else None
+            if here is None:
+                break
+            mean = errors[here].mean()
+            if best is not None and mean >= best[0] - best[1]:
+                break
+            best = (mean, errors[here].std() / np.sqrt(n_folds))
     finalist = None
     if rollout and records:
         finalist, _ = pick_within(
@@ -595,6 +600,22 @@ def _unit(Xt, folds, spaces, fit_on, degrees, thresholds, damping, domain, denoi
     for record in records:
         del record["problem"]
     return records, finalist, failures
+
+
+def _candidate(problem, degree, threshold, n_folds):
+    """One candidate's record: its equation error in every fold, its terms on all the data."""
+    started = time.perf_counter()
+    errors = np.full(n_folds, np.nan)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        for fold in range(n_folds):
+            columns, solution = problem.solve(degree, threshold, fold)
+            errors[fold] = problem.equation_error(columns, solution.coef, fold)
+        _, solution = problem.solve(degree, threshold)
+    return dict(degree=degree, threshold=threshold, errors=errors,
+                n_terms=int(solution.n_kept),
+                fit_time=(time.perf_counter() - started) / (n_folds + 1),
+                scores=np.full(n_folds, np.nan), score_time=np.nan, tied=False)
 
 
 def _within(inner, outer):
