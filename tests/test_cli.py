@@ -148,7 +148,7 @@ def test_npz_file(tmp_path, capsys, pendulum_data):
     np.savez(path, trajectories=pendulum_data, other=np.zeros(3))
     out_dir = tmp_path / "out"
     status, out, err = run(
-        [str(path), "--dt", "0.02", "--output", str(out_dir), "--degrees", "4", "6",
+        [str(path), "--dt", "0.02", "--paper-grid", "--output", str(out_dir), "--degrees", "4", "6",
          "--denoise-degrees", "fd", "6"], capsys,
     )
     assert status == 0
@@ -223,7 +223,7 @@ def test_missing_matplotlib_skips_the_figure(tmp_path, capsys, monkeypatch, pend
     path = tmp_path / "runs.npz"
     np.savez(path, pendulum_data)
     status, out, _ = run(
-        [str(path), "--dt", "0.02", "--output", str(tmp_path), "--degrees", "6",
+        [str(path), "--dt", "0.02", "--paper-grid", "--output", str(tmp_path), "--degrees", "6",
          "--denoise-degrees", "fd"], capsys,
     )
     assert status == 0
@@ -377,7 +377,7 @@ def stamped_pendulum(n_trajectories, n_times, dt, seed=0, noise=0.01):
 def test_csv_time_column_replaces_dt(tmp_path, capsys, time_name):
     path = write_csv(tmp_path / "runs.csv", stamped_pendulum(30, 25, 0.02), time_name=time_name)
     status, out, _ = run(
-        [str(path), "--output", str(tmp_path), "--degrees", "6", "--denoise-degrees", "fd",
+        [str(path), "--paper-grid", "--output", str(tmp_path), "--degrees", "6", "--denoise-degrees", "fd",
          "--cv", "3"], capsys,
     )
     assert status == 0
@@ -424,7 +424,7 @@ def test_one_long_record_is_cut_into_segments_for_blocked_cv(tmp_path, capsys):
     (record,) = stamped_pendulum(1, 801, 0.01, noise=0.02)
     path = write_csv(tmp_path / "record.csv", [record], time_name="t")
     status, out, err = run(
-        [str(path), "--output", str(tmp_path), "--degrees", "6", "--denoise-degrees", "5"],
+        [str(path), "--paper-grid", "--output", str(tmp_path), "--degrees", "6", "--denoise-degrees", "5"],
         capsys,
     )
     assert status == 0
@@ -444,7 +444,7 @@ def test_segment_length_option(tmp_path, capsys):
     (record,) = stamped_pendulum(1, 301, 0.01)
     path = write_csv(tmp_path / "record.csv", [record], time_name="t")
     status, out, _ = run(
-        [str(path), "--output", str(tmp_path), "--degrees", "4", "--denoise-degrees", "fd",
+        [str(path), "--paper-grid", "--output", str(tmp_path), "--degrees", "4", "--denoise-degrees", "fd",
          "--cv", "3", "--segment-length", "50"], capsys,
     )
     assert status == 0
@@ -522,7 +522,7 @@ def test_a_too_short_trajectory_is_dropped_with_a_note_naming_it(tmp_path, capsy
     runs = [T if k != 17 else T[:2] for k, T in enumerate(X)]
     path = write_csv(tmp_path / "runs.csv", runs)
     status, out, _ = run(
-        [str(path), "--dt", "0.02", "--output", str(tmp_path), "--degrees", "4",
+        [str(path), "--dt", "0.02", "--paper-grid", "--output", str(tmp_path), "--degrees", "4",
          "--denoise-degrees", "fd", "5"], capsys,
     )
     assert status == 0
@@ -556,7 +556,7 @@ def test_default_horizon_is_ten_median_durations_over_all_trajectories(
     runs = [T if k else T[:5] for k, T in enumerate(pendulum_data)]
     path = write_csv(tmp_path / "runs.csv", runs)
     status, out, _ = run(
-        [str(path), "--dt", "0.02", "--output", str(tmp_path), "--degrees", "6",
+        [str(path), "--dt", "0.02", "--paper-grid", "--output", str(tmp_path), "--degrees", "6",
          "--denoise-degrees", "fd", "--cv", "3"], capsys,
     )
     assert status == 0
@@ -666,7 +666,7 @@ def test_damping_and_joblib_options(tmp_path, capsys):
     path = tmp_path / "damped.npz"
     np.savez(path, trajectories=X)
     status, out, _ = run(
-        [str(path), "--dt", "0.02", "--output", str(tmp_path), "--degrees", "4",
+        [str(path), "--dt", "0.02", "--paper-grid", "--output", str(tmp_path), "--degrees", "4",
          "--denoise-degrees", "fd", "--damping", "--joblib", "--horizon", "1"], capsys,
     )
     assert status == 0
@@ -803,7 +803,7 @@ def test_threshold_auto_reports_one_term_count_for_the_chosen_model(
     path = tmp_path / "runs.npz"
     np.savez(path, trajectories=pendulum_data)
     status, out, _ = run(
-        [str(path), "--dt", "0.02", "--output", str(tmp_path), "--degrees", "6",
+        [str(path), "--dt", "0.02", "--paper-grid", "--output", str(tmp_path), "--degrees", "6",
          "--denoise-degrees", "fd", "--horizon", "1", "--threshold", "auto"], capsys,
     )
     assert status == 0
@@ -901,7 +901,7 @@ def test_report_figure_legends_sit_off_the_data_and_a_window_is_zoomed(
     path = tmp_path / "runs.npz"
     np.savez(path, trajectories=pendulum_data)
     status, out, _ = run(
-        [str(path), "--dt", "0.02", "--output", str(tmp_path), "--degrees", "4",
+        [str(path), "--dt", "0.02", "--paper-grid", "--output", str(tmp_path), "--degrees", "4",
          "--denoise-degrees", "fd"], capsys,
     )
     assert status == 0 and "up to T = 6 " in out
