@@ -21,7 +21,7 @@ from sklearn.base import clone  # noqa: E402
 from threadpoolctl import threadpool_limits  # noqa: E402
 
 from sk_hamiltonian import DerivativeTransformer, HamiltonianRegressor  # noqa: E402
-from sk_hamiltonian._threshold_path import fit_along_path  # noqa: E402
+from sk_hamiltonian.model_selection._threshold_path import fit_along_path  # noqa: E402
 from sk_hamiltonian.datasets import henon_heiles, make_trajectories  # noqa: E402
 
 THRESHOLDS = [0.0, 1e-3, 1e-2, 3e-2, 0.1]
