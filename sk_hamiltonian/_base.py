@@ -14,7 +14,6 @@ from numbers import Integral, Real
 import numpy as np
 from sklearn.base import BaseEstimator, RegressorMixin, _fit_context
 from sklearn.utils import check_array
-from sklearn.utils._available_if import available_if
 from sklearn.utils._param_validation import Interval, InvalidParameterError, StrOptions
 from sklearn.utils.validation import check_is_fitted, validate_data
 
@@ -26,7 +25,7 @@ from ._scoring import rollout_score
 from ._space import ModelSpace
 from ._space.builder import space_index_set
 from ._space.space import all_finite, count_outside
-from ._streaming import partial_fit_chunk
+from ._streaming import available_with_domain, partial_fit_chunk
 from ._threads import gram_flops, limit_blas
 from ._trajectories import is_trajectory_container, unpack_derivatives
 from ._training_data import training_data
@@ -127,18 +126,7 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
             )
         return steps.set_fitted(self, space, solution, data, solver=solver)
 
-    def _check_partial_fit(self):
-        # partial_fit exists only with a fixed box: the basis (and so the
-        # accumulated normal equations) lives on it.
-        if self.domain is None:
-            raise AttributeError(
-                "partial_fit needs an explicit `domain` (one (low, high) row per state "
-                "variable): the basis must stay on the same box for every chunk. Pass "
-                "domain=..., or use fit."
-            )
-        return True
-
-    @available_if(_check_partial_fit)
+    @available_with_domain
     def partial_fit(self, X, y=None, sample_weight=None):
         """Add a chunk of samples to the fit (normal equations accumulated across calls).
 
