@@ -21,6 +21,7 @@ from . import _fit_steps as steps
 from ._distributed import fit_distributed, is_dask
 from ._integrate import make_integrator, simulation
 from ._least_squares import solve
+from ._outliers import warn_residual_outliers
 from ._scoring import rollout_score
 from ._space import ModelSpace
 from ._space.builder import space_index_set
@@ -105,6 +106,12 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
         -------
         self : object
             The fitted estimator.
+
+        Warns
+        -----
+        OutlierWarning
+            After a fit on trajectories, naming those whose residuals are far
+            outside the rest (see :mod:`sk_hamiltonian._outliers`).
         """
         self._check_integer_params()
         if is_dask(X) or is_dask(y):
@@ -468,7 +475,13 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
         raise NotImplementedError
 
     def _after_fit(self, data):
-        """Hook: checks of the fitted model against its training data."""
+        """Hook: checks of the fitted model against its training data.
+
+        Here: trajectories whose residuals are far outside the rest are named
+        in an :class:`~sk_hamiltonian.OutlierWarning` (see
+        :mod:`sk_hamiltonian._outliers`); subclasses add their own checks.
+        """
+        warn_residual_outliers(self, data)
 
     def __sklearn_tags__(self):
         tags = super().__sklearn_tags__()

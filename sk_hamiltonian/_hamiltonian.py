@@ -202,9 +202,15 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
     Theorem 3.5.
 
     After fitting on trajectories, ``H~`` is evaluated along each of them. A
-    :class:`~sk_hamiltonian.ConservationWarning` says when it trends (the data
-    look dissipative or driven: consider ``damping=True``), or when a fitted
-    damping is not backed by a loss of energy in the data.
+    :class:`~sk_hamiltonian.ConservationWarning` says when it trends both
+    significantly (``|energy_trend_z_| > 4``) and by more than 2 % of its
+    spread per period of the learned system: a loss suggests friction
+    (``damping=True``) or a poor fit, a gain driven data or a missing term.
+    It also says when a fitted damping is not backed by a loss of energy in
+    the data. An :class:`~sk_hamiltonian.OutlierWarning` names trajectories
+    whose residuals are far outside the rest. See the user guide
+    (Measurements: calibrating the conservation check, outlying
+    trajectories).
 
     Examples
     --------
