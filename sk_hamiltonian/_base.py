@@ -24,7 +24,7 @@ from ._least_squares import solve
 from ._outliers import warn_residual_outliers
 from ._scoring import rollout_score
 from ._space import ModelSpace
-from ._space.builder import space_index_set
+from ._space.builder import space_size
 from ._space.space import all_finite, count_outside
 from ._streaming import available_with_domain, partial_fit_chunk
 from ._threads import gram_flops, limit_blas
@@ -107,6 +107,16 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
         self : object
             The fitted estimator.
 
+        Raises
+        ------
+        ValueError
+            Before anything large is built: if the fit would need more memory
+            than ``memory_limit`` (:func:`~sk_hamiltonian.set_config`; the
+            message names the degree, the unknowns, the memory and the
+            remedies), or the states or derivatives exceed ``1e100`` in
+            magnitude (rescale them); and for every parameter that does not
+            fit the data.
+
         Warns
         -----
         OutlierWarning
@@ -170,8 +180,8 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
         return partial_fit_chunk(self, X, y, sample_weight)
 
     def _n_terms(self, n_states):
-        """Number of basis functions for data with ``n_states`` variables."""
-        return space_index_set(n_states, **steps.space_parameters(self)).shape[0]
+        """Number of basis functions for data with ``n_states`` variables (counted, not built)."""
+        return space_size(n_states, **steps.space_parameters(self))
 
     def _rebuild_fitted(self):
         """Private state derived from the public fitted attributes.
@@ -384,14 +394,24 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
         SimulationError
             If a trajectory became non-finite or an implicit step did not
             converge, with ``on_failure="raise"``.
+        ValueError
+            Before anything runs, if the run would take more than ``10**7``
+            integration steps per initial state (``MAX_STEPS``: e.g.
+            ``t = [0, 1e12]``, or ``max_step=1e-12``), or its output more
+            memory than ``memory_limit`` (:func:`sk_hamiltonian.set_config`);
+            the message names ``t``, ``max_step`` and the count.
         """
         check_is_fitted(self)
         x0, single = simulation.check_initial_states(x0, self.n_features_in_)
         t = simulation.check_time(t)
         simulation.check_max_step(max_step)
+        simulation.check_outputs(t.shape[0], x0.shape[0], self.n_features_in_)
         integrator = self._integrator(method)
+        default = None
         if max_step is None:
             max_step = self._default_step(integrator.name)
+            default = "the default step for this model"
+        simulation.check_steps(t, max_step, default)
         simulation.check_on_failure(on_failure)
         Y, reached = simulation.run(integrator, x0, t, max_step, on_failure,
                                     what=f"the learned system ({type(self).__name__})")

@@ -37,7 +37,9 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
     degree : int, default=3
         Largest total degree ``n`` of a basis function (a frequency counts
         like a degree). With the defaults the number of unknowns is
-        ``C(n + 2d, 2d) - 1``.
+        ``C(n + 2d, 2d) - 1``; it is counted before anything is built, and a
+        fit that would need more memory than ``memory_limit``
+        (:func:`~sk_hamiltonian.set_config`) is refused with the sizes.
     domain : array-like of shape (n_states, 2), default=None
         The box carrying the basis, one ``(low, high)`` row per state
         variable; for a periodic variable, one full period ``[low, high)``.
