@@ -46,8 +46,8 @@ TREND_Z = 4.0
 # (DerivativeTransformer(dt=0.01, degree=3), HamiltonianRegressor(degree=8),
 # 100 trajectories of 40 steps of 0.01, seeds 0-19; docs/measurements.rst):
 # relative noise 0.08, |z| <= 2.6 (over seeds 0-59 too) with changes up to
-# 0.074 per period; noise-free, z from -3.6 to -0.8 (the de-noising's own
-# bias); damped_pendulum(0.1) with noise 0.08, z from -6.9 to -2.3, 17 of
+# 0.074 per period; noise-free, z from -3.5 to -0.8 (the de-noising's own
+# bias); damped_pendulum(0.1) with noise 0.08, z from -6.2 to -2.3, 17 of
 # 20 beyond -4, with changes of 0.06 to 0.24 per period.
 TREND_SIZE = 0.02
 # Fewer trajectories than this are cut into contiguous stretches for the

@@ -64,7 +64,7 @@ def test_false_alarm_rate_over_twenty_seeds():
 
 def test_a_damped_pendulum_is_still_flagged_as_losing_energy():
     # damped_pendulum(0.1) in the same setting: flagged in 17 of 20 seeds
-    # (z from -6.9 to -2.3); seed 0 is one of them.
+    # (z from -6.2 to -2.3); seed 0 is one of them.
     model, caught = pendulum_fit(damped_pendulum(0.1), 0)
     assert len(caught) == 1
     message = str(caught[0].message)
