@@ -14,6 +14,7 @@ from .exceptions import (
     ConservationWarning,
     DomainWarning,
     IllConditionedWarning,
+    OutlierWarning,
     SimulationError,
     SmoothingWarning,
 )
@@ -27,6 +28,7 @@ __all__ = [
     "HamiltonianRegressor",
     "IllConditionedWarning",
     "ModelFileError",
+    "OutlierWarning",
     "SimulationError",
     "SmoothingWarning",
     "VectorFieldRegressor",

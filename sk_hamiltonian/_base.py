@@ -14,7 +14,6 @@ from numbers import Integral, Real
 import numpy as np
 from sklearn.base import BaseEstimator, RegressorMixin, _fit_context
 from sklearn.utils import check_array
-from sklearn.utils._available_if import available_if
 from sklearn.utils._param_validation import Interval, InvalidParameterError, StrOptions
 from sklearn.utils.validation import check_is_fitted, validate_data
 
@@ -23,11 +22,12 @@ from ._distributed import fit_distributed, is_dask
 from ._integrate import make_integrator, simulation
 from ._least_squares import solve
 from ._resampling import RESAMPLE_KINDS, check_resampling, fit_resamples
+from ._outliers import warn_residual_outliers
 from ._scoring import rollout_score
 from ._space import ModelSpace
-from ._space.builder import space_index_set
+from ._space.builder import space_size
 from ._space.space import all_finite, count_outside
-from ._streaming import partial_fit_chunk
+from ._streaming import available_with_domain, partial_fit_chunk
 from ._threads import gram_flops, limit_blas
 from ._trajectories import is_trajectory_container, unpack_derivatives
 from ._training_data import training_data
@@ -118,6 +118,22 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
         -------
         self : object
             The fitted estimator.
+
+        Raises
+        ------
+        ValueError
+            Before anything large is built: if the fit would need more memory
+            than ``memory_limit`` (:func:`~sk_hamiltonian.set_config`; the
+            message names the degree, the unknowns, the memory and the
+            remedies), or the states or derivatives exceed ``1e100`` in
+            magnitude (rescale them); and for every parameter that does not
+            fit the data.
+
+        Warns
+        -----
+        OutlierWarning
+            After a fit on trajectories, naming those whose residuals are far
+            outside the rest (see :mod:`sk_hamiltonian._outliers`).
         """
         self._check_integer_params()
         self._clear_resampled()
@@ -164,18 +180,7 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
         for name in ("resampled_coef_", "resampled_damping_"):
             self.__dict__.pop(name, None)
 
-    def _check_partial_fit(self):
-        # partial_fit exists only with a fixed box: the basis (and so the
-        # accumulated normal equations) lives on it.
-        if self.domain is None:
-            raise AttributeError(
-                "partial_fit needs an explicit `domain` (one (low, high) row per state "
-                "variable): the basis must stay on the same box for every chunk. Pass "
-                "domain=..., or use fit."
-            )
-        return True
-
-    @available_if(_check_partial_fit)
+    @available_with_domain
     def partial_fit(self, X, y=None, sample_weight=None):
         """Add a chunk of samples to the fit (normal equations accumulated across calls).
 
@@ -214,8 +219,8 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
         return partial_fit_chunk(self, X, y, sample_weight)
 
     def _n_terms(self, n_states):
-        """Number of basis functions for data with ``n_states`` variables."""
-        return space_index_set(n_states, **steps.space_parameters(self)).shape[0]
+        """Number of basis functions for data with ``n_states`` variables (counted, not built)."""
+        return space_size(n_states, **steps.space_parameters(self))
 
     def _rebuild_fitted(self):
         """Private state derived from the public fitted attributes.
@@ -434,14 +439,24 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
         SimulationError
             If a trajectory became non-finite or an implicit step did not
             converge, with ``on_failure="raise"``.
+        ValueError
+            Before anything runs, if the run would take more than ``10**7``
+            integration steps per initial state (``MAX_STEPS``: e.g.
+            ``t = [0, 1e12]``, or ``max_step=1e-12``), or its output more
+            memory than ``memory_limit`` (:func:`sk_hamiltonian.set_config`);
+            the message names ``t``, ``max_step`` and the count.
         """
         check_is_fitted(self)
         x0, single = simulation.check_initial_states(x0, self.n_features_in_)
         t = simulation.check_time(t)
         simulation.check_max_step(max_step)
+        simulation.check_outputs(t.shape[0], x0.shape[0], self.n_features_in_)
         integrator = self._integrator(method)
+        default = None
         if max_step is None:
             max_step = self._default_step(integrator.name)
+            default = "the default step for this model"
+        simulation.check_steps(t, max_step, default)
         simulation.check_on_failure(on_failure)
         Y, reached = simulation.run(integrator, x0, t, max_step, on_failure,
                                     what=f"the learned system ({type(self).__name__})")
@@ -529,7 +544,13 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
         raise NotImplementedError
 
     def _after_fit(self, data):
-        """Hook: checks of the fitted model against its training data."""
+        """Hook: checks of the fitted model against its training data.
+
+        Here: trajectories whose residuals are far outside the rest are named
+        in an :class:`~sk_hamiltonian.OutlierWarning` (see
+        :mod:`sk_hamiltonian._outliers`); subclasses add their own checks.
+        """
+        warn_residual_outliers(self, data)
 
     def __sklearn_tags__(self):
         tags = super().__sklearn_tags__()

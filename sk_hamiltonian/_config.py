@@ -1,12 +1,14 @@
-"""Global configuration of sk_hamiltonian: which kernels evaluate and simulate models.
+"""Global configuration of sk_hamiltonian: which kernels evaluate and simulate models, and how much memory a fit may plan for.
 
 Mirrors :func:`sklearn.set_config`: a process-wide default, a per-thread
 current value, and a context manager that restores the previous value.
 """
 
+import math
 import os
 import threading
 from contextlib import contextmanager
+from numbers import Real
 
 from ._numba import numba_available
 
@@ -16,7 +18,8 @@ _KERNELS = ("auto", "numpy", "numba")
 # here and rejected by set_config.
 _global_config = {
     "kernels": os.environ.get("SK_HAMILTONIAN_KERNELS", "auto")
-    if os.environ.get("SK_HAMILTONIAN_KERNELS") in _KERNELS else "auto"
+    if os.environ.get("SK_HAMILTONIAN_KERNELS") in _KERNELS else "auto",
+    "memory_limit": "auto",
 }
 _local = threading.local()
 
@@ -45,12 +48,12 @@ def get_config():
     --------
     >>> import sk_hamiltonian
     >>> sorted(sk_hamiltonian.get_config())
-    ['kernels']
+    ['kernels', 'memory_limit']
     """
     return dict(_thread_config())
 
 
-def set_config(kernels=None):
+def set_config(kernels=None, memory_limit=None):
     """Set the configuration of sk_hamiltonian.
 
     Parameters
@@ -66,11 +69,22 @@ def set_config(kernels=None):
         ``SK_HAMILTONIAN_KERNELS`` names another): numba where it can be
         imported, else numpy. Both give the same answers up to round-off.
         None leaves the value unchanged.
+    memory_limit : "auto" or float, default=None
+        Bytes a fit (``fit``, ``partial_fit``) and a simulation may plan to
+        allocate. Before building anything large they estimate what they need
+        from the number of unknowns, rows and output times, and refuse with a
+        ``ValueError`` naming the sizes and the remedies beyond this limit,
+        rather than run for minutes into a ``MemoryError``. ``"auto"`` (the
+        initial value): three quarters of the machine's physical memory (or
+        of a container's memory limit, if lower), or 8 GiB where neither can
+        be read. ``numpy.inf`` turns the check off. None leaves the value
+        unchanged.
 
     Raises
     ------
     ValueError
-        If ``kernels`` is not one of the choices.
+        If ``kernels`` is not one of the choices, or ``memory_limit`` neither
+        ``"auto"`` nor a positive number.
     ImportError
         If ``kernels="numba"`` and numba cannot be imported.
 
@@ -88,28 +102,41 @@ def set_config(kernels=None):
     'numpy'
     >>> sk_hamiltonian.set_config(kernels=previous)
     """
-    if kernels is None:
-        return
-    if kernels not in _KERNELS:
-        raise ValueError(f"kernels must be one of {list(_KERNELS)}; got {kernels!r}.")
-    if kernels == "numba":
-        if not numba_available():
+    if memory_limit is not None and not (
+        (isinstance(memory_limit, str) and memory_limit == "auto") or (
+            isinstance(memory_limit, Real) and not isinstance(memory_limit, bool)
+            and not math.isnan(memory_limit) and memory_limit > 0
+        )
+    ):
+        raise ValueError(
+            f"memory_limit must be 'auto' or a positive number of bytes (numpy.inf: no "
+            f"limit); got {memory_limit!r}."
+        )
+    if kernels is not None:
+        if kernels not in _KERNELS:
+            raise ValueError(f"kernels must be one of {list(_KERNELS)}; got {kernels!r}.")
+        if kernels == "numba" and not numba_available():
             raise ImportError(
                 "kernels='numba' needs numba, which cannot be imported; install it with "
                 "`pip install sk_hamiltonian[fast]`, or use kernels='auto' (numba when "
                 "available, else numpy)."
             )
-    _global_config["kernels"] = kernels
-    _thread_config()["kernels"] = kernels
+    # Both checked before either is set: a refused call changes nothing.
+    for name, value in (("kernels", kernels), ("memory_limit", memory_limit)):
+        if value is not None:
+            _global_config[name] = value
+            _thread_config()[name] = value
 
 
 @contextmanager
-def config_context(*, kernels=None):
+def config_context(*, kernels=None, memory_limit=None):
     """Set the configuration within a ``with`` block, and restore it on leaving.
 
     Parameters
     ----------
     kernels : {"auto", "numpy", "numba"}, default=None
+        As in :func:`set_config`; None leaves the value unchanged.
+    memory_limit : "auto" or float, default=None
         As in :func:`set_config`; None leaves the value unchanged.
 
     Yields
@@ -119,7 +146,7 @@ def config_context(*, kernels=None):
     Raises
     ------
     ValueError
-        If ``kernels`` is not one of the choices.
+        If ``kernels`` or ``memory_limit`` is not one of the choices.
     ImportError
         If ``kernels="numba"`` and numba cannot be imported.
 
@@ -141,11 +168,16 @@ def config_context(*, kernels=None):
     'numpy'
     """
     previous = get_config()
-    set_config(kernels=kernels)
+    set_config(kernels=kernels, memory_limit=memory_limit)
     try:
         yield
     finally:
         set_config(**previous)
+
+
+def memory_limit_setting():
+    """The current ``memory_limit``: ``"auto"`` or a number of bytes."""
+    return _thread_config()["memory_limit"]
 
 
 def use_numba():

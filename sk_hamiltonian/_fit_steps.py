@@ -27,7 +27,9 @@ import numpy as np
 from ._integrate import simulation
 from ._least_squares import SupportRule
 from ._solvers import choose_solver, warn_if_ill_conditioned
+from ._memory import check_solver_memory, check_space_memory
 from ._space.builder import build_space as _build
+from ._space.builder import space_size
 
 
 def space_parameters(estimator):
@@ -44,9 +46,11 @@ def build_space(estimator, data, *, domain=None, size_data=None):
     """(a) The model space of the estimator's parameters on ``data``; nothing is set.
 
     Every model-space parameter is checked against the data (the
-    estimator's ``_check_dimensions`` and ``_check_size`` included), and
-    training states outside an explicit domain are reported with a
-    :class:`~sk_hamiltonian.DomainWarning`.
+    estimator's ``_check_dimensions`` and ``_check_size`` included), the
+    memory of the least fit of that many unknowns against
+    ``memory_limit`` (:func:`sk_hamiltonian.set_config`) before the space is
+    built, and training states outside an explicit domain are reported with
+    a :class:`~sk_hamiltonian.DomainWarning`.
 
     Parameters
     ----------
@@ -65,12 +69,23 @@ def build_space(estimator, data, *, domain=None, size_data=None):
     -------
     space : ModelSpace
     """
-    estimator._check_dimensions(data.states.shape[1])
+    n_states = data.states.shape[1]
+    estimator._check_dimensions(n_states)
     explicit = estimator.domain if domain is None else domain
+
+    def check_size(n_terms):
+        # Before the index set is built: too few equations, or too many unknowns.
+        estimator._check_size(data if size_data is None else size_data)
+        extra = estimator._n_terms(n_states) - n_terms  # e.g. friction coefficients
+        check_space_memory(
+            estimator, n_terms + extra, n_states,
+            lambda degree: extra + space_size(
+                n_states, **{**space_parameters(estimator), "degree": degree}),
+        )
+
     space = _build(
         data.states, domain=explicit, sample_weight=data.sample_weight,
-        check_size=lambda powers: estimator._check_size(data if size_data is None else size_data),
-        **space_parameters(estimator),
+        check_size=check_size, **space_parameters(estimator),
     )
     if explicit is not None:
         w = data.sample_weight
@@ -172,6 +187,15 @@ def set_fitted(estimator, space, solution, data, *, solver="normal", statistics=
     -------
     estimator : BaseTrajectoryRegressor
     """
+    if not np.all(np.isfinite(solution.coef)):
+        # check_magnitude keeps the data's scale in range; a non-finite
+        # solution is still never set as a model.
+        raise ValueError(
+            f"{type(estimator).__name__}: the least-squares solution is not finite (the "
+            f"states reach {np.max(np.abs(data.states)):.3g} and their time derivatives "
+            f"{np.max(np.abs(data.derivatives)):.3g} in magnitude). Rescale the data to units "
+            f"in which each variable spans about 1, or lower `degree`."
+        )
     est = estimator
     est.periodic_, est.powers_, est.domain_ = space.periodic, space.powers, space.domain
     est.mixed_ = space.mixed
@@ -204,9 +228,16 @@ def set_fitted(estimator, space, solution, data, *, solver="normal", statistics=
 
 
 def choose(estimator, design, data):
-    """The estimator's ``solver``, with ``"auto"`` resolved by the size of ``design`` on ``data``."""
-    return choose_solver(estimator.solver, design.n_rows(data), design.space.n_terms,
-                         factored=lambda: design.factored_maps() is not None)
+    """The estimator's ``solver``, with ``"auto"`` resolved by the size of ``design`` on ``data``.
+
+    Raises a ``ValueError`` (naming a solver that fits, if one does) where
+    that solver would need more memory than ``memory_limit``.
+    """
+    n_rows = design.n_rows(data)
+    solver = choose_solver(estimator.solver, n_rows, design.space.n_terms,
+                           factored=lambda: design.factored_maps() is not None)
+    check_solver_memory(estimator, solver, design.n_columns, n_rows, data.states.shape[1])
+    return solver
 
 
 def support_rule(estimator, space, threshold=None):

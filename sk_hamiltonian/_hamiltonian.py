@@ -1,12 +1,10 @@
 """Structure-preserving regression: learn the Hamiltonian, not the vector field."""
 
-import warnings
-
 import numpy as np
 
 from ._base import DOMAIN_SLACK, BaseTrajectoryRegressor
 from ._config import use_numba
-from ._conservation import decorrelated, energy_trend
+from ._conservation import conservation_message, decorrelated, energy_trend, trend_verdict
 from ._design import quadrature_nodes
 from ._integrate import Dynamics
 from ._integrate.compiled import KernelModel
@@ -15,14 +13,12 @@ from ._least_squares import HamiltonianDesign
 from ._space import ModelSpace, compiled
 from ._structure import apply_structure
 from ._trajectories import check_n_states
+from ._warnings import warn
 from .exceptions import ConservationWarning
 
-# A trend of H~ along the data is reported when it is significant (|z| above
-# this) ...
-TREND_Z = 5.0
-# ... and large: the energy's spread changes by more than this fraction over
-# the longer of one training trajectory and one period of the learned system.
-TREND_SIZE = 0.01
+# A fitted damping is "not backed" by the data when H~ does not fall along
+# them by even one standard error (cluster-robust z above -1).
+UNBACKED_Z = 1.0
 
 
 class HamiltonianRegressor(BaseTrajectoryRegressor):
@@ -41,7 +37,9 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
     degree : int, default=3
         Largest total degree ``n`` of a basis function (a frequency counts
         like a degree). With the defaults the number of unknowns is
-        ``C(n + 2d, 2d) - 1``.
+        ``C(n + 2d, 2d) - 1``; it is counted before anything is built, and a
+        fit that would need more memory than ``memory_limit``
+        (:func:`~sk_hamiltonian.set_config`) is refused with the sizes.
     domain : array-like of shape (n_states, 2), default=None
         The box carrying the basis, one ``(low, high)`` row per state
         variable; for a periodic variable, one full period ``[low, high)``.
@@ -237,7 +235,9 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
         trajectory has a spread; NaN when fitted on 2-D states).
         Near zero for conservative data, negative when they lose energy.
     energy_trend_z_ : float
-        The trend's z-score (slope over its standard error).
+        The trend's z-score: slope over its cluster-robust standard error
+        (each trajectory, or with fewer than 20 trajectories each stretch of
+        one, is an independent unit; samples within one may be correlated).
     n_features_in_ : int
         Number of state variables ``2d``.
     feature_names_in_ : ndarray of shape (`n_features_in_`,)
@@ -256,9 +256,15 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
     Theorem 3.5.
 
     After fitting on trajectories, ``H~`` is evaluated along each of them. A
-    :class:`~sk_hamiltonian.ConservationWarning` says when it trends (the data
-    look dissipative or driven: consider ``damping=True``), or when a fitted
-    damping is not backed by a loss of energy in the data.
+    :class:`~sk_hamiltonian.ConservationWarning` says when it trends both
+    significantly (``|energy_trend_z_| > 4``) and by more than 2 % of its
+    spread per period of the learned system: a loss suggests friction
+    (``damping=True``) or a poor fit, a gain driven data or a missing term.
+    It also says when a fitted damping is not backed by a loss of energy in
+    the data. An :class:`~sk_hamiltonian.OutlierWarning` names trajectories
+    whose residuals are far outside the rest. See the user guide
+    (Measurements: calibrating the conservation check, outlying
+    trajectories).
 
     Examples
     --------
@@ -368,6 +374,7 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
         return parts
 
     def _after_fit(self, data):
+        super()._after_fit(data)
         self.energy_trend_, self.energy_trend_z_ = float("nan"), float("nan")
         if data.trajectories is None:
             return
@@ -381,31 +388,19 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
         )
         if not np.isfinite(self.energy_trend_z_):
             return
-        durations = [t[-1] - t[0] for t, _ in data.trajectories]
-        horizon = max(float(np.mean(durations)), 2 * np.pi * self.time_scale_)
-        change = abs(self.energy_trend_) * horizon
-        if not self.damping_.any() and abs(self.energy_trend_z_) > TREND_Z and change > TREND_SIZE:
-            direction = "loses" if self.energy_trend_ < 0 else "gains"
-            warnings.warn(
-                f"HamiltonianRegressor: the learned energy H~ {direction} "
-                f"{change:.1%} of its spread over {horizon:.3g} time units along the "
-                f"training trajectories (trend z-score {self.energy_trend_z_:.1f}), but "
-                f"the model conserves it. Either the data are "
-                f"{'dissipative' if self.energy_trend_ < 0 else 'driven'} (consider "
-                f"damping=True), or the model does not fit them well where the "
-                f"trajectories go (consider a larger degree or a larger space).",
-                ConservationWarning,
-                stacklevel=4,
-            )
-        elif self.damping_.any() and self.energy_trend_z_ > -2:
-            warnings.warn(
+        verdict, change, period = trend_verdict(
+            self.energy_trend_, self.energy_trend_z_, self.time_scale_)
+        if not self.damping_.any() and verdict is not None:
+            warn(conservation_message(verdict, change, period, self.energy_trend_z_),
+                 ConservationWarning)
+        elif self.damping_.any() and self.energy_trend_z_ > -UNBACKED_Z:
+            warn(
                 f"HamiltonianRegressor: the fitted damping {np.round(self.damping_, 4).tolist()} "
                 f"is not backed by a loss of energy along the training trajectories (trend "
                 f"z-score {self.energy_trend_z_:.1f}). A bias of the derivative estimate "
                 f"(e.g. one-sided differences lag by half a step) can look like friction; "
                 f"check the derivatives, or fit with damping=False.",
                 ConservationWarning,
-                stacklevel=4,
             )
 
     # ------------------------------------------------------------ evaluation

@@ -5,6 +5,9 @@ normal matrix) and the number of state variables, never by the number of
 samples seen, so fitting a long stream of chunks runs in constant memory.
 """
 
+from functools import update_wrapper, wraps
+from types import MethodType
+
 import numpy as np
 
 from . import _fit_steps as steps
@@ -26,6 +29,48 @@ def _same(a, b):
         return bool(np.array_equal(np.asarray(a), np.asarray(b)))
     except (TypeError, ValueError):
         return a == b
+
+
+def check_partial_fit(estimator):
+    """Raise the ``AttributeError`` that says why ``estimator`` has no ``partial_fit``: no domain."""
+    # partial_fit exists only with a fixed box: the basis (and so the
+    # accumulated normal equations) lives on it.
+    if estimator.domain is None:
+        raise AttributeError(
+            f"{type(estimator).__name__}.partial_fit needs an explicit `domain` (one "
+            f"(low, high) row per state variable): the basis must stay on the same box for "
+            f"every chunk, and without a domain it would be each chunk's bounding box. "
+            f"Pass domain=..., e.g. a box around all the data to come, or use fit."
+        )
+
+
+class available_with_domain:  # noqa: N801 -- a decorator, named as one
+    """``partial_fit`` where the estimator has a ``domain``; elsewhere the reason, as the error.
+
+    Like :func:`sklearn.utils.metaestimators.available_if` (``hasattr(est,
+    "partial_fit")`` is False without a domain, so scikit-learn's checks and
+    meta-estimators see no ``partial_fit``), but the ``AttributeError`` the
+    user sees is :func:`check_partial_fit`'s own, which names the fix,
+    rather than "has no attribute 'partial_fit'" with the reason chained
+    below it.
+    """
+
+    def __init__(self, fn):
+        self.fn = fn
+        update_wrapper(self, fn)
+
+    def __get__(self, obj, owner=None):
+        if obj is not None:
+            check_partial_fit(obj)
+            return MethodType(self.fn, obj)
+
+        # From the class (documentation, an unbound call): checked at the call.
+        @wraps(self.fn)
+        def unbound(*args, **kwargs):
+            check_partial_fit(args[0])
+            return self.fn(*args, **kwargs)
+
+        return unbound
 
 
 class PartialFitState:

@@ -18,6 +18,10 @@ from ._trajectories import is_trajectory_container, unpack_derivatives
 WEAK_WINDOW = 21
 WEAK_OVERLAP = 4
 WEAK_POWER = 4
+# Largest magnitude of a training state or derivative: squares of 1e100
+# summed over any number of rows, and H~ ~ 1e100 * 1e100, stay far below the
+# float64 overflow at 1.8e308 (see check_magnitude).
+LARGEST_VALUE = 1e100
 
 
 def training_data(estimator, X, y, sample_weight, reset=True):
@@ -42,6 +46,7 @@ def training_data(estimator, X, y, sample_weight, reset=True):
         X, y = validate_data(estimator, X, y, multi_output=True, y_numeric=True, reset=reset,
                              dtype=np.float64)
         weight = None if sample_weight is None else _check_sample_weight(sample_weight, X)
+        check_magnitude(X, y, type(estimator).__name__)
         return TrainingData(X, y, weight)
     if y is not None:
         raise ValueError(
@@ -66,11 +71,34 @@ def training_data(estimator, X, y, sample_weight, reset=True):
             )
         trajectory_weight = _check_sample_weight(trajectory_weight, states)
         weight = np.repeat(trajectory_weight, lengths)
+    check_magnitude(X2, y2, type(estimator).__name__)
     pieces = np.split(X2, np.cumsum(lengths)[:-1])
     return TrainingData(
         X2, y2, weight, trajectories=list(zip(times, pieces)),
         trajectory_weight=trajectory_weight,
     )
+
+
+def check_magnitude(states, targets, name="estimator"):
+    """Refuse states or targets so large that the fit would overflow float64.
+
+    The fit sums squares of the targets and of the basis' derivatives (which
+    scale as one over the box's width), and the learned ``H~`` is of the
+    order of the states times their derivatives: beyond
+    :data:`LARGEST_VALUE` these overflow (or underflow) and the coefficients
+    come out inf, NaN or wrong. An error names the scale and the fix.
+    """
+    for what, values in (("states X", states), ("time derivatives y", targets)):
+        largest = float(np.max(np.abs(values))) if values.size else 0.0
+        if largest > LARGEST_VALUE:
+            raise ValueError(
+                f"{name}: the {what} reach {largest:.3g} in magnitude, beyond "
+                f"{LARGEST_VALUE:g}: at this scale the fit's sums of squares overflow float64 "
+                f"(the learned H~ is of the order of the states times their derivatives), "
+                f"and its coefficients would be inf, NaN or wrong. Rescale the data to units "
+                f"in which each variable spans about 1 (divide it by a power of ten; its time "
+                f"derivative scales with it, and inversely with the unit of time)."
+            )
 
 
 class TrainingData:

@@ -73,3 +73,43 @@ class SmoothingWarning(UserWarning):
     trajectory for its degree, and the derivatives it gives are biased. A
     smaller ``window`` or a larger ``degree`` helps.
     """
+
+
+class OutlierWarning(UserWarning):
+    """Some trajectories lie far outside the rest.
+
+    Raised after a fit on trajectories when a few of them leave residuals far
+    above the others (by :class:`~sk_hamiltonian.HamiltonianRegressor` and
+    :class:`~sk_hamiltonian.VectorFieldRegressor`: their derivatives disagree
+    with the learned field; by :class:`~sk_hamiltonian.DerivativeTransformer`:
+    the de-noising polynomials cannot follow them). Such trajectories are
+    often corrupt (reversed in time, spiky, from another system); inspect
+    them, and drop or repair them. The message names them by their index in
+    the input, and so does the attribute ``trajectories``.
+
+    Parameters
+    ----------
+    message : str
+        Which trajectories, why, and what to do.
+    trajectories : sequence of int, default=()
+        Their indices in the input (the order of ``X``).
+
+    Attributes
+    ----------
+    trajectories : tuple of int
+        The indices of the outlying trajectories.
+
+    Examples
+    --------
+    >>> import warnings
+    >>> from sk_hamiltonian import OutlierWarning
+    >>> with warnings.catch_warnings(record=True) as caught:
+    ...     warnings.simplefilter("always")
+    ...     warnings.warn(OutlierWarning("trajectories [3] ...", trajectories=[3]))
+    >>> caught[0].message.trajectories
+    (3,)
+    """
+
+    def __init__(self, message, trajectories=()):
+        super().__init__(message)
+        self.trajectories = tuple(int(k) for k in trajectories)

@@ -125,8 +125,10 @@ def test_paper_grid_example_report(paper_demo):
     trend = re.search(r"energy trend of H~ along the data: \S+ of its spread per unit time "
                       r"\(z = (\S+)\): (.*)$", out, re.M)
     assert trend, out
-    assert abs(float(trend.group(1))) <= 5 and "look conservative" in trend.group(2)
-    assert "within the noise (a trend counts from |z| > 5)" in trend.group(2)
+    assert abs(float(trend.group(1))) <= 4 and "look conservative" in trend.group(2)
+    # The estimator's own rule (issue 32): significant and large.
+    assert ("within the noise (a trend counts from |z| > 4 and 2% of the spread per period)"
+            in trend.group(2))
     assert trend.group(1) == f"{model[-1].energy_trend_z_:.1f}"
 
 
@@ -508,6 +510,15 @@ def test_horizon_must_be_positive_and_finite(tmp_path, capsys, pendulum_data, va
     assert "--horizon must be a positive finite number" in line
 
 
+def test_a_horizon_beyond_the_simulation_limit_is_one_line(tmp_path, capsys, pendulum_data):
+    path = tmp_path / "runs.npz"
+    np.savez(path, trajectories=pendulum_data)
+    line = error_of([str(path), "--dt", "0.02", "--horizon", "1e12", "--degrees", "3",
+                     "--output", str(tmp_path / "out")], capsys)
+    assert "--horizon 1e+12 is 5e+13 sampling intervals of 0.02" in line
+    assert "give a shorter --horizon" in line
+
+
 @pytest.mark.parametrize("content", ["trajectory,p,q\n", "trajectory,p,q\n\n\n"])
 def test_empty_csv_says_it_has_no_data_rows(tmp_path, capsys, content):
     path = tmp_path / "empty.csv"
@@ -630,6 +641,16 @@ def test_simulate_refuses_states_outside_the_domain_unless_asked(demo, tmp_path,
         (["--x0", "0", "0", "--t-end", "1", "--dt", "nan"], "--dt must be a positive finite"),
         (["--x0", "0", "0", "--t-end", "1", "--method", "leapfrog"],
          "cannot simulate: .*separable"),
+        # Sizes are refused before anything is allocated (issue 32: --t-end 1e9
+        # ended in "Unable to allocate 745 GiB").
+        (["--x0", "0", "0", "--t-end", "1e9"],
+         r"cannot simulate: --t-end 1e\+09 at output step 0\.01 \(--dt\) asks for "
+         r"100,000,000,001 output times .* TB, beyond the memory limit"),
+        (["--x0", "0", "0", "--t-end", "1e300", "--dt", "1e-300"],
+         r"cannot simulate: --t-end 1e\+300 .* asks for inf output times"),
+        (["--x0", "0", "0", "--t-end", "10", "--max-step", "1e-12"],
+         r"cannot simulate: t runs from 0 to 10 .* with max_step=1e-12 that is 1e\+13 "
+         r"integration steps per initial state, beyond the limit of 1e\+07"),
     ],
 )
 def test_simulate_usage_errors(demo, tmp_path, capsys, extra, message):

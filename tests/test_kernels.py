@@ -49,7 +49,8 @@ def _states(space, n, seed=0):
 
 
 def test_config_default_and_choices():
-    assert get_config() == {"kernels": DEFAULT}
+    # memory_limit (issue 32) is the other key; tests/test_sizes.py checks it.
+    assert get_config() == {"kernels": DEFAULT, "memory_limit": "auto"}
     assert DEFAULT == os.environ.get("SK_HAMILTONIAN_KERNELS", "auto")
     with pytest.raises(ValueError, match="kernels must be one of"):
         set_config(kernels="fortran")

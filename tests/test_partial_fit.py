@@ -67,11 +67,16 @@ def test_chunks_of_states_with_weights(layout):
 def test_partial_fit_needs_a_domain_and_fixed_parameters(layout):
     model = HamiltonianRegressor(degree=3)
     assert not hasattr(model, "partial_fit")
-    # scikit-learn's available_if hides the method (so its common checks, run
-    # with the default domain=None, skip it); the reason is the cause.
-    with pytest.raises(AttributeError, match="partial_fit") as error:
+    # The method is hidden (so scikit-learn's common checks, run with the
+    # default domain=None, skip it), and the error the user sees is the
+    # reason itself with the fix, not "has no attribute" with the reason
+    # chained below it (issue 32).
+    with pytest.raises(AttributeError, match="partial_fit needs an explicit `domain`") as error:
         model.partial_fit(layout)
-    assert "explicit `domain`" in str(error.value.__cause__)
+    assert "Pass domain=" in str(error.value) and error.value.__cause__ is None
+    # From the class, as scikit-learn's available_if allows: checked at the call.
+    with pytest.raises(AttributeError, match="explicit `domain`"):
+        HamiltonianRegressor.partial_fit(model, layout)
     model = HamiltonianRegressor(degree=3, domain=DOMAIN).partial_fit(layout[:50])
     model.set_params(degree=4)
     with pytest.raises(ValueError, match="`degree` changed from 3 to 4"):

@@ -9,6 +9,7 @@ from sklearn.pipeline import make_pipeline
 
 from .._derivatives import DerivativeTransformer
 from .._integrate import integrate
+from .._integrate.simulation import MAX_STEPS, check_outputs
 from .._vector_field import VectorFieldRegressor
 from ..exceptions import DomainWarning
 from ..inspection import format_hamiltonian
@@ -31,6 +32,8 @@ def run(args):
     data = segment_if_needed(args, data)
     horizon = args.horizon if args.horizon is not None else data.horizon
     check_positive("--horizon", horizon)
+    # Before the search: a horizon beyond the simulation limits fails at once.
+    n_intervals = _horizon_steps(horizon, data.step, len(data.names))
     _prepare_output(args.output)
     print(f"data: {data.title}")
     X, names = data.X, data.names
@@ -52,7 +55,7 @@ def run(args):
 
     system = data.system
     x0 = np.asarray(system.initial_state if system is not None else data.states[0][0])
-    t = data.step * np.arange(int(round(horizon / data.step)) + 1)
+    t = data.step * np.arange(n_intervals + 1)
     origin = (
         "u0* = (" + ", ".join(f"{v:g}" for v in x0) + ")" if system is not None
         else "the first observation of the first trajectory"
@@ -184,6 +187,25 @@ def _fit_baseline(best, X):
         except ValueError as error:  # e.g. more unknowns than data at this degree
             print(f"note: non-SP baseline not fitted: {error}")
             return None
+
+
+def _horizon_steps(horizon, step, n_states):
+    """Sampling intervals up to ``horizon``, refused (one line) beyond the simulation limits.
+
+    The reference solution of a known system takes ten steps per interval.
+    """
+    intervals = horizon / step
+    if not (np.isfinite(intervals) and 10 * intervals <= MAX_STEPS):
+        raise UsageError(
+            f"--horizon {horizon:g} is {intervals:.3g} sampling intervals of {step:g} (and ten "
+            f"times as many steps for the reference solution), beyond the limit of "
+            f"{MAX_STEPS // 10:.0e} intervals; give a shorter --horizon"
+        )
+    try:
+        check_outputs(intervals + 1, 1, n_states, what=f"--horizon {horizon:g}")
+    except ValueError as error:
+        raise UsageError(str(error)) from None
+    return max(0, int(round(intervals)))
 
 
 def _rollout(model, x0, t, method):

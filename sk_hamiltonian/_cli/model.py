@@ -8,6 +8,7 @@ import warnings
 import numpy as np
 
 from .._io_text import escaping_output
+from .._integrate.simulation import check_outputs
 from ..exceptions import DomainWarning, SimulationError
 from ..io import ModelFileError, load, read_manifest
 from .datafiles import default_state_names
@@ -235,8 +236,14 @@ def simulate(argv):
     dt = args.dt
     if dt is None:
         dt = regressor.dt_ if np.isfinite(regressor.dt_) else args.t_end / DEFAULT_SAMPLES
-    n_steps = max(1, int(round(args.t_end / dt)))
-    t = dt * np.arange(n_steps + 1)
+    # Refused before the output times are built: --t-end 1e9 would ask numpy for 745 GiB.
+    intervals = max(1.0, round(args.t_end / dt)) if np.isfinite(args.t_end / dt) else np.inf
+    try:
+        check_outputs(intervals + 1, len(x0), n,
+                      what=f"--t-end {args.t_end:g} at output step {dt:g} (--dt)")
+    except ValueError as error:
+        raise UsageError(f"cannot simulate: {error}") from None
+    t = dt * np.arange(int(intervals) + 1)
     figure = args.figure or os.path.splitext(args.output)[0] + ".png"
     for path in (args.output, figure):
         folder = os.path.dirname(os.path.abspath(path))

@@ -7,35 +7,55 @@ Nothing here knows how the search ran: the choice is read from a
 
 import numpy as np
 
-from .._hamiltonian import TREND_Z
+from .._conservation import TREND_SIZE, TREND_Z, trend_verdict
 from ..model_selection import candidate_table
 from .words import counted
 
 
 def describe_energy_trend(model):
-    """One line: the trend of the learned energy along the data, and what it suggests."""
+    """One line: the trend of the learned energy along the data, and what it suggests.
+
+    The verdict is the estimator's own rule (:func:`~sk_hamiltonian._conservation.trend_verdict`):
+    a trend counts when it is both significant and large.
+    """
     rate, z = model.energy_trend_, model.energy_trend_z_
     if not (np.isfinite(rate) and np.isfinite(z)):
         return "energy trend of H~ along the data: not available (too few samples)"
-    if abs(z) <= TREND_Z:
-        verdict = (
-            f"within the noise (a trend counts from |z| > {TREND_Z:g}): the data look "
+    verdict, change, period = trend_verdict(rate, z, model.time_scale_)
+    per_period = (f"{change:.2%} of its spread per period ({period:.3g})"
+                  if np.isfinite(change) else "a significant change")
+    if verdict is None and abs(z) <= TREND_Z:
+        reading = (
+            f"within the noise (a trend counts from |z| > {TREND_Z:g} and "
+            f"{TREND_SIZE:.0%} of the spread per period): the data look conservative"
+        )
+    elif verdict is None:
+        reading = (
+            f"significant but small ({per_period}, below {TREND_SIZE:.0%}): the data look "
             f"conservative"
         )
-    elif z < 0:
-        verdict = (
-            "H~ falls along the data: they look dissipative (friction), which a conservative "
-            "model cannot follow; --damping (HamiltonianRegressor(damping=True)) can"
+    elif verdict == "loses":
+        reading = (
+            f"H~ falls along the data ({per_period}): they look dissipative (friction), which "
+            f"a conservative model cannot follow; --damping (HamiltonianRegressor(damping=True)) "
+            f"can, or the model fits poorly where the data go"
         )
     else:
-        verdict = (
-            "H~ rises along the data: they look driven, or the model misses part of the "
-            "dynamics"
+        reading = (
+            f"H~ rises along the data ({per_period}): they look driven (energy fed in from "
+            f"outside, which no damping can follow), or the model misses part of the dynamics"
         )
     return (
-        f"energy trend of H~ along the data: {rate:+.2%} of its spread per unit time "
-        f"(z = {z:.1f}): {verdict}"
+        f"energy trend of H~ along the data: {_percent(rate)} of its spread per unit time "
+        f"(z = {z:.1f}): {reading}"
     )
+
+
+def _percent(rate):
+    """``rate`` as a signed percentage with two significant digits (never "-0.00%")."""
+    if rate == 0:
+        return "0%"
+    return f"{100 * rate:+.2g}%" if abs(rate) < 1e-3 else f"{rate:+.2%}"
 
 
 def print_choice(result):

@@ -14,7 +14,7 @@ import operator
 import numpy as np
 from sklearn.utils import check_array
 
-from .index_set import index_set
+from .index_set import count_index_set, index_set
 from .space import ModelSpace
 
 # Thinnest interval of a domain: the map onto the basis window scales
@@ -49,9 +49,10 @@ def build_space(states, *, degree, domain=None, periodic=None, momentum_degree=N
     sample_weight : ndarray of shape (n_samples,), default=None
         Weights of the states: only those of positive weight span the box.
     check_size : callable, default=None
-        ``check_size(powers)``, called with the index set before the box is
-        fitted, to reject a problem with fewer equations than unknowns
-        before any other check of the data.
+        ``check_size(n_terms)``, called with the size of the index set
+        (counted, not built) before it is built and before the box is
+        fitted, to reject a problem with fewer equations than unknowns, or
+        too large for memory, before anything large is allocated.
 
     Returns
     -------
@@ -68,13 +69,14 @@ def build_space(states, *, degree, domain=None, periodic=None, momentum_degree=N
     n_states = states.shape[1]
     periodic = fit_periodic(periodic, n_states)
     mixed = fit_mixed(mixed, periodic)
-    powers = space_index_set(
-        n_states, degree=degree, periodic=periodic, momentum_degree=momentum_degree,
+    parameters = dict(
+        degree=degree, periodic=periodic, momentum_degree=momentum_degree,
         separable=separable, max_interaction=max_interaction, couplings=couplings,
         include_constant=include_constant, mixed=mixed,
     )
     if check_size is not None:
-        check_size(powers)
+        check_size(space_size(n_states, **parameters))
+    powers = space_index_set(n_states, **parameters)
     spanning = states if sample_weight is None else states[sample_weight > 0]
     return ModelSpace(fit_domain(spanning, domain, periodic), powers, periodic, mixed)
 
@@ -121,11 +123,7 @@ def fit_mixed(mixed, periodic):
 def space_index_set(n_states, *, degree, periodic=None, momentum_degree=None, separable=False,
                     max_interaction=None, couplings=None, include_constant=False, mixed=None):
     """The multi-indices of the parameters' space for ``n_states`` variables (checked)."""
-    if (momentum_degree is not None or separable) and n_states % 2:
-        raise ValueError(
-            f"momentum_degree and separable need states (p_1..p_d, q_1..q_d) with an "
-            f"even number of variables; X has {n_states}."
-        )
+    _check_halves(n_states, momentum_degree, separable)
     periodic = fit_periodic(periodic, n_states)
     return index_set(
         n_states, degree, periodic=periodic,
@@ -133,6 +131,27 @@ def space_index_set(n_states, *, degree, periodic=None, momentum_degree=None, se
         max_interaction=max_interaction, couplings=check_couplings(couplings, n_states),
         include_constant=include_constant, mixed=fit_mixed(mixed, periodic),
     )
+
+
+def space_size(n_states, *, degree, periodic=None, momentum_degree=None, separable=False,
+               max_interaction=None, couplings=None, include_constant=False, mixed=None):
+    """Size of :func:`space_index_set` (checked the same way), counted without building it."""
+    _check_halves(n_states, momentum_degree, separable)
+    periodic = fit_periodic(periodic, n_states)
+    return count_index_set(
+        n_states, degree, periodic=periodic,
+        momentum_degree=momentum_degree, separable=separable,
+        max_interaction=max_interaction, couplings=check_couplings(couplings, n_states),
+        include_constant=include_constant, mixed=fit_mixed(mixed, periodic),
+    )
+
+
+def _check_halves(n_states, momentum_degree, separable):
+    if (momentum_degree is not None or separable) and n_states % 2:
+        raise ValueError(
+            f"momentum_degree and separable need states (p_1..p_d, q_1..q_d) with an "
+            f"even number of variables; X has {n_states}."
+        )
 
 
 def check_couplings(couplings, n_states):

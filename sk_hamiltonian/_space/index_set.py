@@ -13,6 +13,7 @@ lattice) cost what they hold.
 """
 
 from itertools import combinations
+from math import comb
 
 import numpy as np
 
@@ -133,6 +134,116 @@ def index_set(
     return powers[order]
 
 
-def count_index_set(n_states, degree, **constraints):
-    """Number of multi-indices :func:`index_set` returns for these arguments."""
-    return index_set(n_states, degree, **constraints).shape[0]
+def count_index_set(
+    n_states,
+    degree,
+    *,
+    periodic=None,
+    momentum_degree=None,
+    separable=False,
+    max_interaction=None,
+    couplings=None,
+    include_constant=False,
+    mixed=None,
+):
+    """Number of multi-indices :func:`index_set` returns, counted without building them.
+
+    Closed forms, so that a space too large to build (degree ``10**6``, or
+    60 in four variables) is measured in microseconds. A basis function
+    depends on a *support* of ``s`` variables, ``a`` momenta and ``b``
+    positions of them, with positive degrees summing to at most
+    ``degree``: ``C(degree, s)`` of them, or with ``momentum_degree`` ``M``
+    the Vandermonde sum ``sum_j C(M, a + j) C(degree - M, b - j)``; each
+    periodic variable of the support doubles them (a cosine and a sine), each
+    mixed one triples them (a polynomial, a cosine and a sine).
+    With ``couplings`` the supports of two or more variables are the
+    distinct subsets of the groups, counted by inclusion and exclusion over
+    the groups' intersections.
+
+    Parameters
+    ----------
+    n_states, degree, periodic, momentum_degree, separable, max_interaction, couplings, include_constant, mixed
+        As :func:`index_set` takes them.
+
+    Returns
+    -------
+    n_terms : int
+        Exactly ``index_set(...).shape[0]``.
+    """
+    periodic = np.zeros(n_states, dtype=bool) if periodic is None else np.asarray(periodic, bool)
+    mixed = np.zeros(n_states, dtype=bool) if mixed is None else np.asarray(mixed, bool)
+    largest = n_states if max_interaction is None else min(max_interaction, n_states)
+    largest = min(largest, degree)
+    split = momentum_degree is not None or separable
+    half = n_states // 2 if split else 0
+    momentum_cap = degree if momentum_degree is None else min(momentum_degree, degree)
+
+    def compositions(a, b):
+        # Positive degrees on a momenta and b positions: total <= degree,
+        # momenta's total <= momentum_cap.
+        if a == 0 or momentum_cap >= degree:
+            return comb(degree, a + b)
+        return sum(comb(momentum_cap, a + j) * comb(degree - momentum_cap, b - j)
+                   for j in range(b + 1))
+
+    def weighted_subsets(variables, smallest):
+        # Sum over the subsets of `variables` with smallest..largest members of
+        # 2**(periodic members) times their compositions.
+        variables = list(variables)
+        momenta = [i for i in variables if i < half]
+        positions = [i for i in variables if i >= half]
+        by_size = []
+        for members in (momenta, positions):
+            # Subsets of k members weighted by 2 per periodic member and 3 per
+            # mixed one: the coefficients of prod(1 + weight x).
+            ways = [1]
+            for i in members:
+                w = 2 if periodic[i] else 3 if mixed[i] else 1
+                ways = [a + w * b for a, b in zip(ways + [0], [0] + ways)]
+            by_size.append(ways)
+        total = 0
+        for a, ways_a in enumerate(by_size[0]):
+            for b, ways_b in enumerate(by_size[1]):
+                if smallest <= a + b <= largest and not (separable and a and b):
+                    total += ways_a * ways_b * compositions(a, b)
+        return total
+
+    count = 1 if include_constant else 0
+    if largest < 1:
+        return count
+    if couplings is None:
+        if not separable:
+            return count + weighted_subsets(range(n_states), 1)
+        return (count + weighted_subsets(range(half), 1)
+                + weighted_subsets(range(half, n_states), 1))
+    # Functions of one variable always enter; those of two or more, on the
+    # distinct subsets of the groups (within one half, if separable).
+    count += weighted_subsets(range(n_states), 1) - weighted_subsets(range(n_states), 2)
+    halves = [range(half), range(half, n_states)] if separable else [range(n_states)]
+    groups = {frozenset(c) & frozenset(h) for c in couplings for h in halves}
+    groups = [g for g in groups if len(g) >= 2]
+    # A group inside another adds no subset.
+    groups = [g for g in groups if not any(g < other for other in groups)]
+    return count + _union_of_subsets(groups, lambda g: weighted_subsets(sorted(g), 2))
+
+
+def _union_of_subsets(groups, weight):
+    """``weight`` summed over the distinct subsets of the ``groups`` (inclusion-exclusion).
+
+    ``weight(g)`` sums over the subsets of ``g`` with at least two members;
+    an intersection of fewer than two variables holds none, which prunes
+    the search (a chain's pairs meet in one variable: no term beyond the
+    groups themselves).
+    """
+    total = 0
+
+    def visit(start, common, sign):
+        nonlocal total
+        for i in range(start, len(groups)):
+            meet = groups[i] if common is None else common & groups[i]
+            if len(meet) >= 2:
+                total += sign * weight(meet)
+                visit(i + 1, meet, -sign)
+
+    visit(0, None, 1)
+    return total
