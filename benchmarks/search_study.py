@@ -245,11 +245,14 @@ def run_sindy(name, seed, weak):
     cfg, system, X, cv = scene_data(name, seed)
     x0, truth = fresh_states(system, cfg["angles"])
     folds = [test for _, test in cv.split(X)]
+    # CPU time, as for the others (the anchor's own fit_time is wall-clock).
+    start = time.process_time()
     anchor = fit_sindy_cv(X, cfg["dt"], library=cfg["sindy"], folds=folds, weak=weak,
                           seed=seed)
+    seconds = time.process_time() - start
     t = np.linspace(0.0, T_END, int(round(T_END / cfg["dt"])) + 1)
     error = fresh_error(lambda x: anchor.simulate(x, t)[:, -1], x0, truth, cfg["angles"])
-    return dict(seconds=anchor.fit_time, error=error, n_terms=int(anchor.n_terms),
+    return dict(seconds=seconds, error=error, n_terms=int(anchor.n_terms),
                 params=getattr(anchor, "params", {}))
 
 
@@ -342,6 +345,56 @@ def report(scenes, seeds, output):
     return summary
 
 
+STYLE = {"search": ("o", "C0", "HamiltonianSearchCV (default)"),
+         "paper-grid": ("s", "C1", "paper's grid (polynomial GridSearchCV)"),
+         "sindy": ("^", "C2", "PySINDy, strong form (cross-validated)"),
+         "sindy-weak": ("v", "C3", "PySINDy, weak form (cross-validated)")}
+
+
+def chart(scenes, seeds, output):
+    """Error against CPU time, one panel per scene; the grid's best as a dashed line.
+
+    A model whose rollout fails (blows up or leaves the float range) is
+    drawn at the top edge of its panel with a cross, never left out.
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    fig, axes = plt.subplots(1, len(scenes), figsize=(3.4 * len(scenes), 3.6), squeeze=False)
+    for ax, name in zip(axes[0], scenes):
+        rows = {m: _rows(output, name, m, seeds) for m in METHODS}
+        finite = [r["error"] for m in STYLE for r in rows[m].values() if np.isfinite(r["error"])]
+        top = 2 * max(finite) if finite else 1.0
+        for method, (marker, colour, label) in STYLE.items():
+            seconds = [r["seconds"] for r in rows[method].values()]
+            errors = [r["error"] for r in rows[method].values()]
+            if not seconds:
+                continue
+            ok = np.isfinite(errors)
+            ax.scatter(np.array(seconds)[ok], np.array(errors)[ok], marker=marker, color=colour,
+                       label=label, alpha=0.8)
+            if (~ok).any():
+                ax.scatter(np.array(seconds)[~ok], np.full((~ok).sum(), top), marker="x",
+                           color=colour, label=f"{label}: rollout fails")
+        if rows["oracle"]:
+            ax.axhline(geometric_mean([r["error"] for r in rows["oracle"].values()]),
+                       color="0.4", ls="--", lw=1, label="best candidate by the truth")
+        ax.set(xscale="log", yscale="log", title=name.replace("_", " "),
+               xlabel="CPU seconds (one core)")
+    axes[0, 0].set_ylabel(f"relative state error at T={T_END:g}")
+    handles, labels = {}, []
+    for ax in axes[0]:
+        for h, lab in zip(*ax.get_legend_handles_labels()):
+            handles.setdefault(lab, h)
+    fig.legend(handles.values(), handles.keys(), loc="lower center", ncol=3, frameon=False)
+    fig.tight_layout(rect=(0, 0.14, 1, 1))
+    fig.savefig(output / "search_study.png", dpi=110)
+    plt.close(fig)
+    return output / "search_study.png"
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--scenes", nargs="+", default=list(SCENES), choices=list(SCENES))
@@ -357,6 +410,10 @@ def main(argv=None):
                 for method in args.methods:
                     compute(name, seed, method, args.output)
     report(args.scenes, args.seeds, args.output)
+    try:
+        print("chart:", chart(args.scenes, args.seeds, args.output))
+    except ImportError:
+        print("no chart: matplotlib is not installed (pip install sk_hamiltonian[plot])")
 
 
 if __name__ == "__main__":
