@@ -120,29 +120,28 @@ def fit_mixed(mixed, periodic):
     return flags
 
 
-def space_index_set(n_states, *, degree, periodic=None, momentum_degree=None, separable=False,
-                    max_interaction=None, couplings=None, include_constant=False, mixed=None):
-    """The multi-indices of the parameters' space for ``n_states`` variables (checked)."""
-    _check_halves(n_states, momentum_degree, separable)
-    periodic = fit_periodic(periodic, n_states)
-    return index_set(
-        n_states, degree, periodic=periodic,
-        momentum_degree=momentum_degree, separable=separable,
-        max_interaction=max_interaction, couplings=check_couplings(couplings, n_states),
-        include_constant=include_constant, mixed=fit_mixed(mixed, periodic),
-    )
+def space_index_set(n_states, **parameters):
+    """The multi-indices of the parameters' space for ``n_states`` variables (checked).
+
+    ``parameters`` are :func:`build_space`'s keywords but ``domain``.
+    """
+    return index_set(n_states, **_checked(n_states, **parameters))
 
 
-def space_size(n_states, *, degree, periodic=None, momentum_degree=None, separable=False,
-               max_interaction=None, couplings=None, include_constant=False, mixed=None):
+def space_size(n_states, **parameters):
     """Size of :func:`space_index_set` (checked the same way), counted without building it."""
+    return count_index_set(n_states, **_checked(n_states, **parameters))
+
+
+def _checked(n_states, *, degree, periodic=None, momentum_degree=None, separable=False,
+             max_interaction=None, couplings=None, include_constant=False, mixed=None):
     _check_halves(n_states, momentum_degree, separable)
     periodic = fit_periodic(periodic, n_states)
-    return count_index_set(
-        n_states, degree, periodic=periodic,
-        momentum_degree=momentum_degree, separable=separable,
-        max_interaction=max_interaction, couplings=check_couplings(couplings, n_states),
-        include_constant=include_constant, mixed=fit_mixed(mixed, periodic),
+    return dict(
+        degree=degree, periodic=periodic, momentum_degree=momentum_degree,
+        separable=separable, max_interaction=max_interaction,
+        couplings=check_couplings(couplings, n_states), include_constant=include_constant,
+        mixed=fit_mixed(mixed, periodic),
     )
 
 
