@@ -361,9 +361,15 @@ def chart(scenes, seeds, output):
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
+    from matplotlib.ticker import FormatStrFormatter, NullFormatter
 
-    fig, axes = plt.subplots(1, len(scenes), figsize=(3.4 * len(scenes), 3.6), squeeze=False)
-    for ax, name in zip(axes[0], scenes):
+    columns = min(2, len(scenes))
+    rows_ = -(-len(scenes) // columns)
+    fig, axes = plt.subplots(rows_, columns, figsize=(4.6 * columns, 3.4 * rows_ + 1.0),
+                             squeeze=False)
+    for ax in axes.flat[len(scenes):]:
+        ax.set_visible(False)
+    for ax, name in zip(axes.flat, scenes):
         rows = {m: _rows(output, name, m, seeds) for m in METHODS}
         finite = [r["error"] for m in STYLE for r in rows[m].values() if np.isfinite(r["error"])]
         top = 2 * max(finite) if finite else 1.0
@@ -382,14 +388,16 @@ def chart(scenes, seeds, output):
             ax.axhline(geometric_mean([r["error"] for r in rows["oracle"].values()]),
                        color="0.4", ls="--", lw=1, label="best candidate by the truth")
         ax.set(xscale="log", yscale="log", title=name.replace("_", " "),
-               xlabel="CPU seconds (one core)")
-    axes[0, 0].set_ylabel(f"relative state error at T={T_END:g}")
-    handles, labels = {}, []
-    for ax in axes[0]:
+               xlabel="CPU seconds (one core)", ylabel=f"relative state error at T={T_END:g}")
+        for axis in (ax.xaxis, ax.yaxis):
+            axis.set_major_formatter(FormatStrFormatter("%g"))
+            axis.set_minor_formatter(NullFormatter())
+    handles = {}
+    for ax in axes.flat:
         for h, lab in zip(*ax.get_legend_handles_labels()):
             handles.setdefault(lab, h)
-    fig.legend(handles.values(), handles.keys(), loc="lower center", ncol=3, frameon=False)
-    fig.tight_layout(rect=(0, 0.14, 1, 1))
+    fig.legend(handles.values(), handles.keys(), loc="lower center", ncol=2, frameon=False)
+    fig.tight_layout(rect=(0, 1.0 / (3.4 * rows_ + 1.0), 1, 1))
     fig.savefig(output / "search_study.png", dpi=110)
     plt.close(fig)
     return output / "search_study.png"
