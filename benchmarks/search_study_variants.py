@@ -1,0 +1,118 @@
+"""Two variants of the search's pick, tried on the study's data (docs/search_study.rst).
+
+``--windows``
+    The weak form's window: the search's default of 21 samples (stride 5)
+    against one window of the whole 41-sample trajectory, for the weak fit at
+    degree 4, threshold 0.01, in the scene's own space (the one the search
+    keeps), de-noising ``Q = 8``. The window is a module constant of the
+    package (``sk_hamiltonian._training_data.WEAK_WINDOW``), set here for the
+    experiment only.
+``--average``
+    The finalists the cross-validation cannot tell apart (``tied`` in the
+    search's ``cv_results_``), refitted on all the data, their vector fields
+    averaged and integrated by RK4 (step 2e-3) to ``T``; its fresh-state
+    error against the search's pick.
+
+Both read the search's saved rows from ``search_study.py`` (run that first)
+and judge by the same fresh states and error. Run::
+
+    python benchmarks/search_study_variants.py --windows henon_heiles 1 2 3
+    python benchmarks/search_study_variants.py --windows torsion_pendulum 0
+    python benchmarks/search_study_variants.py --average pendulum 0 1 2 3 4 5 6 7 8 9
+    python benchmarks/search_study_variants.py --average torsion_pendulum 0 1 2 3 4
+"""
+
+import argparse
+import os
+import pickle
+import sys
+import warnings
+from pathlib import Path
+
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
+
+import numpy as np  # noqa: E402
+from sklearn.base import clone  # noqa: E402
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+import search_study as study  # noqa: E402
+
+import sk_hamiltonian._training_data as training_data  # noqa: E402
+
+SPACES = {
+    "pendulum": dict(momentum_degree=2, periodic=[False, True]),
+    "henon_heiles": dict(momentum_degree=2),
+    "torsion_pendulum": dict(momentum_degree=2, mixed=[False, True]),
+    "double_well": dict(momentum_degree=2),
+}
+
+
+def windows(scene, seed):
+    cfg, system, X, _ = study.scene_data(scene, seed)
+    x0, truth = study.fresh_states(system, cfg["angles"])
+    errors = {}
+    default = training_data.WEAK_WINDOW, training_data.WEAK_OVERLAP
+    try:
+        for length, overlap in [default, (41, 1)]:
+            training_data.WEAK_WINDOW, training_data.WEAK_OVERLAP = length, overlap
+            model = study.pipeline(cfg["dt"]).set_params(
+                derivativetransformer__method="polynomial", derivativetransformer__degree=8,
+                hamiltonianregressor__degree=4, hamiltonianregressor__threshold=0.01,
+                hamiltonianregressor__fit_on="weak",
+                **{f"hamiltonianregressor__{k}": v for k, v in SPACES[scene].items()},
+            ).fit(X)[-1]
+            errors[f"window {length}"] = (study.model_error(model, x0, truth, cfg["angles"]),
+                                          int(model.n_terms_))
+    finally:
+        training_data.WEAK_WINDOW, training_data.WEAK_OVERLAP = default
+    return errors
+
+
+def average(scene, seed, output):
+    cfg, system, X, _ = study.scene_data(scene, seed)
+    x0, truth = study.fresh_states(system, cfg["angles"])
+    row = pickle.loads((output / f"{scene}_{seed}_search.pkl").read_bytes())
+    results = row["cv_results"]
+    tied = [i for i in row["finalist_errors"] if results["tied"][i]]
+    models = [clone(study.pipeline(cfg["dt"])).set_params(**results["params"][i]).fit(X)[-1]
+              for i in tied]
+
+    def field(x):
+        return np.mean([model.predict(x) for model in models], axis=0)
+
+    h, x = 2e-3, x0.copy()
+    for _ in range(int(round(study.T_END / h))):
+        k1 = field(x)
+        k2 = field(x + h / 2 * k1)
+        k3 = field(x + h / 2 * k2)
+        k4 = field(x + h * k3)
+        x = x + h / 6 * (k1 + 2 * k2 + 2 * k3 + k4)
+    averaged = study.fresh_error(lambda _: x, x0, truth, cfg["angles"])
+    return {"pick": row["error"], "average of the tied": averaged, "n_tied": len(tied)}
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    which = parser.add_mutually_exclusive_group(required=True)
+    which.add_argument("--windows", action="store_true")
+    which.add_argument("--average", action="store_true")
+    parser.add_argument("scene", choices=list(study.SCENES))
+    parser.add_argument("seeds", nargs="+", type=int)
+    parser.add_argument("--output", type=Path, default=study.HERE / "results" / "search_study")
+    args = parser.parse_args(argv)
+    warnings.simplefilter("ignore")
+    ratios = []
+    for seed in args.seeds:
+        if args.windows:
+            print(args.scene, seed, windows(args.scene, seed), flush=True)
+        else:
+            result = average(args.scene, seed, args.output)
+            ratios.append(result["pick"] / result["average of the tied"])
+            print(args.scene, seed, result, flush=True)
+    if ratios:
+        print(f"pick / average, geometric mean: {study.geometric_mean(ratios):.3f}")
+
+
+if __name__ == "__main__":
+    main()
