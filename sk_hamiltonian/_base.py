@@ -133,7 +133,7 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
         -----
         OutlierWarning
             After a fit on trajectories, naming those whose residuals are far
-            outside the rest (see :mod:`sk_hamiltonian._outliers`).
+            outside the rest (a robust rule on each trajectory's residual).
         """
         self._check_integer_params()
         self._clear_resampled()

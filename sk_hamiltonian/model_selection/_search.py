@@ -168,16 +168,16 @@ class HamiltonianSearchCV(BaseEstimator):
     ----------
     best_estimator_ : Pipeline
         ``make_pipeline(DerivativeTransformer(dt=dt), HamiltonianRegressor())``
-        with :attr:`best_params_`, fitted on all the data.
+        with ``best_params_``, fitted on all the data.
     best_params_ : dict
         The chosen candidate's parameters, in the pipeline's names.
     best_index_ : int
-        Its row in :attr:`cv_results_`.
+        Its row in ``cv_results_``.
     best_score_ : float
         Its mean rollout score.
     cv_results_ : dict of ndarray
         One row per candidate, laid out as
-        :attr:`~sklearn.model_selection.GridSearchCV.cv_results_`
+        ``cv_results_`` of :class:`~sklearn.model_selection.GridSearchCV`
         (``params``, ``param_<name>``, ``split<k>_test_score``,
         ``mean_test_score``, ``std_test_score``, ``rank_test_score``), with
         the rollout scores of the finalists (NaN for the other candidates),
@@ -369,15 +369,15 @@ class HamiltonianSearchCV(BaseEstimator):
         Returns
         -------
         dXdt : ndarray or list of ndarray
-            :meth:`~sklearn.pipeline.Pipeline.predict` of
-            :attr:`best_estimator_`: the learned vector field at the
+            ``predict`` of
+            ``best_estimator_``: the learned vector field at the
             trajectories' (de-noised) states, in their shape.
         """
         check_is_fitted(self)
         return self.best_estimator_.predict(X)
 
     def score(self, X, y=None):
-        """The rollout score of :attr:`best_estimator_` on trajectories ``X``.
+        """The rollout score of ``best_estimator_`` on trajectories ``X``.
 
         Parameters
         ----------
