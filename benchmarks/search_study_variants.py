@@ -7,6 +7,11 @@
     keeps), de-noising ``Q = 8``. The window is a module constant of the
     package (``sk_hamiltonian._training_data.WEAK_WINDOW``), set here for the
     experiment only.
+``--coefficients``
+    The learned coefficients side by side: the package's fit targets (weak,
+    Simpson, steps) on finite differences and on ``Q = 8``, in the scene's
+    own space (degree 4, threshold 0.01), and PySINDy's weak form as the
+    study cross-validates it (its nonzero coefficients, equation by equation).
 ``--average``
     The finalists the cross-validation cannot tell apart (``tied`` in the
     search's ``cv_results_``), refitted on all the data, their vector fields
@@ -69,6 +74,30 @@ def windows(scene, seed):
     return errors
 
 
+def coefficients(scene, seed):
+    from sindy_anchor import fit_sindy_cv
+
+    from sk_hamiltonian.inspection import format_hamiltonian
+
+    cfg, system, X, cv = study.scene_data(scene, seed)
+    x0, truth = study.fresh_states(system, cfg["angles"])
+    for Q in ("fd", 8):
+        layout = (dict(derivativetransformer__method="finite_difference") if Q == "fd" else
+                  dict(derivativetransformer__method="polynomial", derivativetransformer__degree=Q))
+        for fit_on in ("weak", "simpson", "steps"):
+            model = study.pipeline(cfg["dt"]).set_params(
+                **layout, hamiltonianregressor__degree=4, hamiltonianregressor__threshold=0.01,
+                hamiltonianregressor__fit_on=fit_on,
+                **{f"hamiltonianregressor__{k}": v for k, v in SPACES[scene].items()},
+            ).fit(X)[-1]
+            error = study.model_error(model, x0, truth, cfg["angles"])
+            print(f"Q={Q} {fit_on:8s} error {error:.4f}  {format_hamiltonian(model)}", flush=True)
+    folds = [test for _, test in cv.split(X)]
+    anchor = fit_sindy_cv(X, cfg["dt"], library=cfg["sindy"], folds=folds, weak=True, seed=seed)
+    for i, j in zip(*np.nonzero(anchor.coef)):
+        print(f"PySINDy weak: d x{i}/dt  {anchor.coef[i, j]:+.5f} {anchor.feature_names[j]}")
+
+
 def average(scene, seed, output):
     cfg, system, X, _ = study.scene_data(scene, seed)
     x0, truth = study.fresh_states(system, cfg["angles"])
@@ -97,6 +126,7 @@ def main(argv=None):
     which = parser.add_mutually_exclusive_group(required=True)
     which.add_argument("--windows", action="store_true")
     which.add_argument("--average", action="store_true")
+    which.add_argument("--coefficients", action="store_true")
     parser.add_argument("scene", choices=list(study.SCENES))
     parser.add_argument("seeds", nargs="+", type=int)
     parser.add_argument("--output", type=Path, default=study.HERE / "results" / "search_study")
@@ -106,6 +136,8 @@ def main(argv=None):
     for seed in args.seeds:
         if args.windows:
             print(args.scene, seed, windows(args.scene, seed), flush=True)
+        elif args.coefficients:
+            coefficients(args.scene, seed)
         else:
             result = average(args.scene, seed, args.output)
             ratios.append(result["pick"] / result["average of the tied"])
