@@ -248,18 +248,11 @@ class TrainingData:
         rate : ndarray of shape (n_windows, n_states)
         group_weight : ndarray of shape (n_windows,)
         """
-        self._check_trajectories("weak", 3)
-        length = WEAK_WINDOW if length is None else length
-        stride = max(1, length // WEAK_OVERLAP) if stride is None else stride
-        width = min(length, max(S.shape[0] for _, S in self.trajectories))
+        width, stride = self._window_layout(length, stride)
         points, weights, rates, group = [], [], [], []
         for k, (t, S) in enumerate(self.trajectories):
-            n = S.shape[0]
-            size = min(width, n)
-            starts = range(0, n - size + 1, stride) if n > size else [0]
-            starts = list(starts)
-            if starts[-1] != n - size:
-                starts.append(n - size)  # the trajectory's end in a window too
+            size = min(width, S.shape[0])
+            starts = _window_starts(S.shape[0], width, stride)
             unwrapped = S[0] + np.concatenate(
                 [np.zeros((1, S.shape[1])), np.cumsum(space.wrap_difference(np.diff(S, axis=0)),
                                                       axis=0)])
@@ -310,18 +303,16 @@ class TrainingData:
 
     def _windows_per_trajectory(self, length=None, stride=None):
         """Windows of each trajectory in :meth:`windows`."""
+        width, stride = self._window_layout(length, stride)
+        return np.array([len(_window_starts(S.shape[0], width, stride))
+                         for _, S in self.trajectories], dtype=np.intp)
+
+    def _window_layout(self, length, stride):
+        """The weak form's window width (capped at the longest trajectory) and stride."""
         self._check_trajectories("weak", 3)
         length = WEAK_WINDOW if length is None else length
         stride = max(1, length // WEAK_OVERLAP) if stride is None else stride
-        width = min(length, max(S.shape[0] for _, S in self.trajectories))
-        counts = []
-        for _, S in self.trajectories:
-            n = S.shape[0]
-            if n <= width:
-                counts.append(1)
-                continue
-            counts.append((n - width) // stride + 1 + ((n - width) % stride != 0))
-        return np.array(counts, dtype=np.intp)
+        return min(length, max(S.shape[0] for _, S in self.trajectories)), stride
 
     def _check_trajectories(self, fit_on, fewest):
         if self.trajectories is None:
@@ -374,6 +365,16 @@ class TrainingData:
         if fit_on == "weak":
             return self.windows_count()
         return self.states.shape[0]
+
+
+def _window_starts(n, width, stride):
+    """First samples of the windows of a trajectory of ``n`` samples (one if it is shorter)."""
+    if n <= width:
+        return [0]
+    starts = list(range(0, n - width + 1, stride))
+    if starts[-1] != n - width:
+        starts.append(n - width)  # the trajectory's end in a window too
+    return starts
 
 
 class Quadrature:
