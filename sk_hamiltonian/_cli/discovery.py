@@ -6,15 +6,12 @@ paper's grid (:func:`~sk_hamiltonian._cli.search.run_search`), so the report
 reads either.
 """
 
-import time
-import warnings
-
 import numpy as np
 
 from ..model_selection import HamiltonianSearchCV
 from .errors import UsageError
-from .parser import DEFAULT_DEGREES, QUICK_DEGREES, parse_domain, parse_threshold
-from .search import SearchResult, cv_folds, usable_denoise
+from .parser import parse_domain, parse_threshold
+from .search import SearchResult, cv_folds, fit_recording_warnings, search_degrees, usable_denoise
 from .words import counted
 
 # Fit targets the command searches unless told (--fit-on).
@@ -42,9 +39,7 @@ def run_discovery(args, data):
         If no candidate could be fitted: one line with the reason.
     """
     denoise = usable_denoise(args, data)
-    degrees = sorted(set(args.degrees or (QUICK_DEGREES if args.quick else DEFAULT_DEGREES)))
-    if degrees[0] < 1:
-        raise UsageError(f"--degrees: n must be at least 1; got {degrees[0]}")
+    degrees = search_degrees(args)
     thresholds = parse_threshold(args.threshold or "auto")
     fit_on = args.fit_on or (QUICK_FIT_ON if args.quick else DEFAULT_FIT_ON)
     folds, what = cv_folds(args, data)
@@ -61,11 +56,8 @@ def run_discovery(args, data):
         f"{', '.join(f'{v:g}' for v in thresholds)}; {args.cv} folds of {what}",
         flush=True,
     )
-    start = time.perf_counter()
     try:
-        with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always")
-            search.fit(data.X, groups=data.groups)
+        warned, fit_time = fit_recording_warnings(search, data)
     except ValueError as error:
         message = " ".join(str(error).split())
         if "`domain`" in message:
@@ -74,7 +66,6 @@ def run_discovery(args, data):
                 f"{', '.join(data.names)}."
             )
         raise UsageError(f"the search failed: {message}") from None
-    fit_time = time.perf_counter() - start
     results = search.cv_results_
     n_states = len(data.names)
     labels = [_describe(p, data.names[n_states // 2:]) for p in results["params"]]
@@ -86,7 +77,7 @@ def run_discovery(args, data):
         labels=labels,
         n_fits=n_candidates * search.n_splits_,
         fit_time=fit_time,
-        warned=sorted({w.category.__name__ for w in caught}),
+        warned=warned,
         summary=(
             f"HamiltonianSearchCV, {args.cv} folds of {what}, "
             f"{counted(n_candidates, 'candidate')} "

@@ -92,13 +92,8 @@ def run_search(args, data):
         scoring=_ProgressScorer(n_candidates, args.cv, sys.stderr),
         refit=True,
     )
-    start = time.perf_counter()
-    # Poor candidates warn by the hundred (rollouts leaving the domain); the
-    # report names the kinds once instead.
     try:
-        with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always")
-            search.fit(data.X, groups=data.groups)
+        warned, fit_time = fit_recording_warnings(search, data)
     except ValueError as error:
         # GridSearchCV's words when no fit succeeded, with every traceback.
         failed = re.match(r"\s*All the (\d+) fits failed", str(error))
@@ -107,7 +102,6 @@ def run_search(args, data):
         reason = _first_failure(pipe, grid, folds, data)
         raise UsageError(_shared_failure(int(failed.group(1)), str(error), reason, data.names))\
             from None
-    fit_time = time.perf_counter() - start
     params = search.cv_results_["params"]
     return SearchResult(
         best=search.best_estimator_,
@@ -116,12 +110,33 @@ def run_search(args, data):
         labels=[_describe(p) for p in params],
         n_fits=len(params) * args.cv,
         fit_time=fit_time,
-        warned=sorted({w.category.__name__ for w in caught}),
+        warned=warned,
         summary=(
             f"GridSearchCV, {args.cv} folds of {what}, {counted(len(params), 'candidate')}, "
             f"rollout score, refit = best mean"
         ),
     )
+
+
+def fit_recording_warnings(search, data):
+    """Fit ``search`` on ``data``: the sorted names of the warnings' categories, and the seconds.
+
+    Poor candidates warn by the hundred (rollouts leaving the domain); the
+    report names the kinds once instead.
+    """
+    start = time.perf_counter()
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        search.fit(data.X, groups=data.groups)
+    return sorted({w.category.__name__ for w in caught}), time.perf_counter() - start
+
+
+def search_degrees(args):
+    """The polynomial degrees of the options (``--degrees``, or the defaults), checked."""
+    degrees = sorted(set(args.degrees or (QUICK_DEGREES if args.quick else DEFAULT_DEGREES)))
+    if degrees[0] < 1:
+        raise UsageError(f"--degrees: n must be at least 1; got {degrees[0]}")
+    return degrees
 
 
 def _first_failure(pipe, grid, folds, data):
@@ -197,9 +212,7 @@ def _grid(args, data):
     """Candidate parameters, keeping only those the data can support."""
     X, n_states = data.X, len(data.names)
     denoise = usable_denoise(args, data)
-    degrees = sorted(set(args.degrees or (QUICK_DEGREES if args.quick else DEFAULT_DEGREES)))
-    if degrees[0] < 1:
-        raise UsageError(f"--degrees: n must be at least 1; got {degrees[0]}")
+    degrees = search_degrees(args)
     # At least twice as many equations as unknowns in every training fold.
     equations = (args.cv - 1) / args.cv * sum(len(T) for T in X) * n_states
     too_big = [

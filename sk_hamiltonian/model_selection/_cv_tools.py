@@ -10,6 +10,7 @@ from .._base import BaseTrajectoryRegressor
 from .._scoring import multistep_errors
 from .._trajectories import check_trajectories, is_trajectory_container
 from .._vector_field import VectorFieldRegressor
+from ._selection import ties
 
 
 def _final_regressor(estimator):
@@ -274,7 +275,7 @@ def candidate_table(search, *, metric="score"):
     paired = folds - folds[best]
     difference = np.where(finite, paired.mean(axis=1), np.nan)
     difference_se = np.where(finite, paired.std(axis=1) / np.sqrt(n_splits), np.nan)
-    tied = finite & (means >= means[best] - se[best])
+    tied = ties(folds, best, higher_is_better=True, paired=False)
     return {
         "params": list(results["params"]),
         "mean": means,

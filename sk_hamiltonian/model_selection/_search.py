@@ -6,7 +6,7 @@ import warnings
 from numbers import Integral, Real
 
 import numpy as np
-from sklearn.base import BaseEstimator, clone
+from sklearn.base import BaseEstimator
 from sklearn.model_selection import check_cv
 from sklearn.pipeline import Pipeline
 from sklearn.utils._param_validation import Interval, StrOptions
@@ -66,12 +66,8 @@ def auto_spaces(n_states):
 
 def _pipeline_params(denoise, fit_on, space, degree, threshold, damping, domain=None):
     """Parameters of ``make_pipeline(DerivativeTransformer(), HamiltonianRegressor())``."""
-    params = {}
-    if denoise == "finite_difference":
-        params["derivativetransformer__method"] = "finite_difference"
-    else:
-        params["derivativetransformer__method"] = "polynomial"
-        params["derivativetransformer__degree"] = int(denoise)
+    params = {f"derivativetransformer__{key}": value
+              for key, value in _transformer_params(denoise).items()}
     for key, value in space.items():
         params[f"hamiltonianregressor__{key}"] = value
     params["hamiltonianregressor__degree"] = int(degree)
@@ -347,11 +343,10 @@ class HamiltonianSearchCV(BaseEstimator):
         self.best_params_ = self.cv_results_["params"][self.best_index_]
         self.best_score_ = float(self.cv_results_["mean_test_score"][self.best_index_])
         refit_start = time.perf_counter()
-        pipe = Pipeline([
+        self.best_estimator_ = Pipeline([
             ("derivativetransformer", DerivativeTransformer(dt=self.dt)),
             ("hamiltonianregressor", HamiltonianRegressor()),
-        ])
-        self.best_estimator_ = clone(pipe).set_params(**self.best_params_).fit(X)
+        ]).set_params(**self.best_params_).fit(X)
         self.refit_time_ = time.perf_counter() - refit_start
         self.search_time_ = time.perf_counter() - start
         self.n_features_in_ = n_states
@@ -512,7 +507,7 @@ class HamiltonianSearchCV(BaseEstimator):
 def _transformer_params(denoise):
     if denoise == "finite_difference":
         return {"method": "finite_difference"}
-    return {"method": "polynomial", "degree": denoise}
+    return {"method": "polynomial", "degree": int(denoise)}
 
 
 def _describe_layout(denoise):
