@@ -56,7 +56,7 @@ def factor_degrees(powers, mixed=None):
     if mixed is None or not np.any(mixed):
         return degrees
     trig = np.asarray(mixed, dtype=bool) & (powers < 0)
-    return np.where(trig, (degrees + 1) // 2, degrees)
+    return np.where(trig, np.abs(code_frequency(powers)), degrees)
 
 
 def mixed_columns(codes, legendre_degree):
