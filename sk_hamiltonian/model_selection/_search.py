@@ -17,6 +17,7 @@ from .._derivatives import DerivativeTransformer
 from .._hamiltonian import HamiltonianRegressor
 from .._trajectories import check_trajectories
 from ._fold_problems import FoldProblems, take
+from ._refine import refine_on_trajectories
 from ._selection import SELECTIONS, pick_among, pick_within
 
 FIT_TARGETS = ("derivatives", "steps", "simpson", "weak")
@@ -90,7 +91,7 @@ class HamiltonianSearchCV(BaseEstimator):
     and model space, the normal equations of every fold come from one pass
     over the data, and every degree and threshold is a smaller solve on them.
 
-    The search runs in three stages, all on the same folds of whole
+    The search runs in four stages, all on the same folds of whole
     trajectories:
 
     1. **Screen** the model spaces (``spaces``) on one reference layout (the
@@ -110,6 +111,13 @@ class HamiltonianSearchCV(BaseEstimator):
        against the held-out raw observations (which never sees the
        derivatives or smoothed states being compared), and choose by
        ``selection``.
+    4. **Refine** (``refine="trajectories"``) the chosen model, refitted on
+       all the data: the coefficients of its kept terms are fitted to the
+       raw trajectories themselves, each simulated from an initial state of
+       its own, with weights from a noise model ``a_i + b_i x_i^2`` per
+       variable estimated from the residuals (the output-error estimate).
+       The terms stay those chosen; their coefficients no longer carry the
+       bias and noise of the estimated derivatives.
 
     Parameters
     ----------
@@ -143,6 +151,12 @@ class HamiltonianSearchCV(BaseEstimator):
         None: the bounding box of each derivative layout's states, and
         ``[-pi, pi)`` for periodic variables. Needed when a variable is
         constant in the data.
+    refine : {"trajectories"} or None, default="trajectories"
+        Refit the chosen model's kept coefficients to the raw trajectories
+        (stage 4). Skipped, with the reason in ``refinement_``, for a model
+        with friction or more than 40 terms, or whose simulation of the
+        training trajectories fails. None: the least-squares fit of the
+        chosen candidate, as refitted.
     selection : {"simplest", "best_score"}, default="simplest"
         The final choice among the finalists' rollout scores.
         ``"best_score"``: the best mean score. ``"simplest"``: among the
@@ -187,8 +201,15 @@ class HamiltonianSearchCV(BaseEstimator):
         The model spaces searched after the screen.
     n_splits_ : int
         Number of folds.
+    refinement_ : dict
+        Stage 4's outcome: ``status`` (``"refined"``, ``"not asked"``, or
+        ``"kept: "`` and why the least-squares coefficients were kept), and
+        when refined ``n_terms``, ``n_iter`` (Levenberg-Marquardt iterations),
+        ``noise`` (the variance model's ``(a_i, b_i)`` per variable),
+        ``rms`` (the root-mean-square residual per variable) and ``change``
+        (the largest relative change of a kept coefficient).
     refit_time_ : float
-        Seconds of the final fit on all the data.
+        Seconds of the final fit on all the data, the refinement included.
     search_time_ : float
         Seconds of the whole search, the refit included.
     n_features_in_ : int
@@ -222,6 +243,7 @@ class HamiltonianSearchCV(BaseEstimator):
         "thresholds": ["array-like"],
         "damping": ["boolean"],
         "domain": ["array-like", None],
+        "refine": [StrOptions({"trajectories"}), None],
         "selection": [StrOptions(set(SELECTIONS))],
         "cv": ["cv_object"],
         "n_jobs": [Integral, None],
@@ -231,7 +253,8 @@ class HamiltonianSearchCV(BaseEstimator):
     def __init__(
         self, dt=None, *, denoise_degrees=("finite_difference", 3, 5, 8), degrees=(4, 6, 8, 10),
         spaces="auto", fit_on=FIT_TARGETS, thresholds=(0.0, 0.001, 0.01, 0.03, 0.1),
-        damping=False, domain=None, selection="simplest", cv=5, n_jobs=None, verbose=0,
+        damping=False, domain=None, refine="trajectories", selection="simplest", cv=5,
+        n_jobs=None, verbose=0,
     ):
         self.dt = dt
         self.denoise_degrees = denoise_degrees
@@ -241,6 +264,7 @@ class HamiltonianSearchCV(BaseEstimator):
         self.thresholds = thresholds
         self.damping = damping
         self.domain = domain
+        self.refine = refine
         self.selection = selection
         self.cv = cv
         self.n_jobs = n_jobs
@@ -347,6 +371,12 @@ class HamiltonianSearchCV(BaseEstimator):
             ("derivativetransformer", DerivativeTransformer(dt=self.dt)),
             ("hamiltonianregressor", HamiltonianRegressor()),
         ]).set_params(**self.best_params_).fit(X)
+        self.refinement_ = dict(status="not asked")
+        if self.refine == "trajectories":
+            self._say("refine: the chosen model's coefficients on the raw trajectories")
+            self.refinement_ = refine_on_trajectories(
+                self.best_estimator_[-1], trajectories, self.dt)
+            self._say(f"refine: {self.refinement_['status']}")
         self.refit_time_ = time.perf_counter() - refit_start
         self.search_time_ = time.perf_counter() - start
         self.n_features_in_ = n_states
