@@ -5,7 +5,9 @@ For each scene and data seed:
 ``search``
     :class:`~sk_hamiltonian.model_selection.HamiltonianSearchCV` with its
     defaults (5 folds of whole trajectories, shuffled by the seed): its
-    pick, the terms it keeps, its time, and every finalist's error.
+    pick, the terms it keeps, its time, every finalist's error, and the
+    error of the same pick without the refinement on the trajectories
+    (``refine=None``: its least-squares refit).
 ``oracle``
     Every candidate the search evaluated (its ``cv_results_``), refitted on
     all the data and judged by the truth: the best of them is "the grid's
@@ -174,8 +176,14 @@ def run_search(name, seed):
     from sk_hamiltonian.inspection import hamiltonian_terms
 
     kept = {term.text for term in hamiltonian_terms(model)}
+    # The same pick without stage 4 (refine=None): its least-squares refit.
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        least_squares = clone(pipeline(cfg["dt"])).set_params(**search.best_params_).fit(X)
     return dict(
         seconds=seconds, error=model_error(model, x0, truth, cfg["angles"]),
+        error_least_squares=model_error(least_squares[-1], x0, truth, cfg["angles"]),
+        refinement=search.refinement_,
         params=search.best_params_, n_terms=int(model.n_terms_),
         formula=format_hamiltonian(model), exact_support=kept == cfg["terms"],
         kept_spaces=search.kept_spaces_, finalist_errors=finalist_errors,
@@ -301,6 +309,7 @@ def report(scenes, seeds, output):
         for method, results in by_method.items():
             for seed, r in results.items():
                 rows.append(dict(scene=name, method=method, seed=seed, error=r["error"],
+                                 error_least_squares=r.get("error_least_squares", ""),
                                  n_terms=r.get("n_terms"), cpu_seconds=r.get("seconds"),
                                  exact_support=r.get("exact_support", ""),
                                  formula=r.get("formula", "")))
@@ -313,6 +322,9 @@ def report(scenes, seeds, output):
         for method, results in by_method.items():
             line[method] = geometric_mean([r["error"] for r in results.values()]) \
                 if results else math.nan
+        unrefined = [r["error_least_squares"] for r in search.values()
+                     if "error_least_squares" in r]
+        line["search-ls"] = geometric_mean(unrefined) if unrefined else math.nan
         common = [s for s in search if s in by_method["oracle"]]
         line["pick/best"] = geometric_mean(
             [search[s]["error"] / by_method["oracle"][s]["error"] for s in common]) \
@@ -331,7 +343,8 @@ def report(scenes, seeds, output):
                 print(f"  {method:11s} " + " ".join(
                     f"{seed}:{r['error']:.3g}({r.get('n_terms', '-')})"
                     for seed, r in results.items()))
-    keys = ["scene", "seeds", "exact", "terms", "search", "oracle", "pick/best", "paper-grid",
+    keys = ["scene", "seeds", "exact", "terms", "search", "search-ls", "oracle", "pick/best",
+            "paper-grid",
             "sindy", "sindy-weak", "search_s", "grid_s", "time ratio"]
     print("\n" + "  ".join(f"{k:>12s}" for k in keys))
     for line in summary:
@@ -384,6 +397,11 @@ def chart(scenes, seeds, output):
             if (~ok).any():
                 ax.scatter(np.array(seconds)[~ok], np.full((~ok).sum(), top), marker="x",
                            color=colour, label=f"{label}: rollout fails")
+            unrefined = [r.get("error_least_squares", np.nan) for r in rows[method].values()]
+            if method == "search" and np.isfinite(unrefined).any():
+                ax.scatter(seconds, unrefined, marker=marker, facecolors="none",
+                           edgecolors=colour, alpha=0.8,
+                           label="its pick without the refinement (refine=None)")
         if rows["oracle"]:
             ax.axhline(geometric_mean([r["error"] for r in rows["oracle"].values()]),
                        color="0.4", ls="--", lw=1, label="best candidate by the truth")

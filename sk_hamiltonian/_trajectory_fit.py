@@ -29,6 +29,8 @@ squares, :data:`N_REWEIGHTS` times).
 
 import numpy as np
 
+from ._structure import apply_inverse_symplectic
+
 # Levenberg-Marquardt: iterations per (re)weighted fit, the relative decrease
 # of the cost below which it stops, and the damping beyond which no step
 # downhill is left to find.
@@ -70,20 +72,16 @@ class FlowModel:
     def rates(self, x, theta, Sx=None, St=None):
         """The field at ``x``, and the sensitivities' rates when ``Sx`` and ``St`` are given."""
         G = self.gradients(x)
-        field = _symplectic(G @ theta)
+        field = apply_inverse_symplectic(G @ theta)
         if Sx is None:
             return field, None, None
         H = self.hessian(x, theta)
         return field, _symplectic(H @ Sx), _symplectic(H @ St + G)
 
 
-def _symplectic(g):
-    """``J^{-1} g`` over the second-to-last axis: ``(-dH/dq, dH/dp)``."""
-    d = g.shape[1] // 2
-    out = np.empty_like(g)
-    np.negative(g[:, d:], out=out[:, :d])
-    out[:, d:] = g[:, :d]
-    return out
+def _symplectic(M):
+    """``J^{-1} M`` for matrices ``M`` of shape (n, n_states, k): Hamilton's map on each column."""
+    return apply_inverse_symplectic(M.swapaxes(1, 2)).swapaxes(1, 2)
 
 
 def flow(model, theta, x0, steps, sensitivities=True):

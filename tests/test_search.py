@@ -18,6 +18,7 @@ from sk_hamiltonian.datasets import make_trajectories, single_pendulum
 from sk_hamiltonian.inspection import hamiltonian_terms
 from sk_hamiltonian.model_selection import HamiltonianSearchCV, auto_spaces
 from sk_hamiltonian.model_selection._fold_problems import FoldProblems
+from sk_hamiltonian.model_selection._refine import refine_on_trajectories
 from sk_hamiltonian.model_selection._selection import pick_among, pick_within, ties
 
 SPACES = [{}, {"periodic": [False, True], "momentum_degree": 2}]
@@ -88,6 +89,10 @@ def test_best_estimator_is_the_pipeline_with_best_params(fitted, pendulum):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ConservationWarning)
         refit = clone(pipe).set_params(**fitted.best_params_).fit(pendulum)
+    # Stage 4 then refines the refit's coefficients on the raw trajectories.
+    assert fitted.refinement_["status"] == "refined"
+    assert not np.array_equal(refit[-1].coef_, fitted.best_estimator_[-1].coef_)
+    refine_on_trajectories(refit[-1], list(pendulum), 0.01)
     np.testing.assert_array_equal(refit[-1].coef_, fitted.best_estimator_[-1].coef_)
     x0 = np.array([[0.5, 0.3]])
     np.testing.assert_array_equal(fitted.simulate(x0, [0, 0.5]),
@@ -184,6 +189,7 @@ def test_pick_within_prefers_fewer_terms_among_ties():
     (dict(fit_on=["steps", "strong"]), "fit_on"),
     (dict(spaces=[{"degree": 3}]), "spaces"),
     (dict(denoise_degrees=[40]), "shortest trajectory"),
+    (dict(refine="rollout"), "refine"),
 ])
 def test_bad_parameters_name_themselves(pendulum, params, match):
     with pytest.raises(ValueError, match=match):
@@ -213,3 +219,17 @@ def test_an_explicit_domain_reaches_every_candidate_and_the_refit(pendulum):
         search = small_search(spaces=[{}], fit_on=["derivatives"], domain=domain).fit(X)
     assert search.best_params_["hamiltonianregressor__domain"] == domain
     np.testing.assert_array_equal(search.best_estimator_[-1].domain_, domain)
+
+
+def test_refine_none_keeps_the_least_squares_refit(pendulum, fitted):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ConservationWarning)
+        plain = small_search(refine=None).fit(pendulum)
+    assert plain.refinement_ == {"status": "not asked"}
+    assert plain.best_params_ == fitted.best_params_
+    pipe = Pipeline([("derivativetransformer", DerivativeTransformer(dt=0.01)),
+                     ("hamiltonianregressor", HamiltonianRegressor())])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ConservationWarning)
+        refit = pipe.set_params(**plain.best_params_).fit(pendulum)
+    np.testing.assert_array_equal(refit[-1].coef_, plain.best_estimator_[-1].coef_)

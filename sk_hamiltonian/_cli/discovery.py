@@ -8,7 +8,9 @@ reads either.
 
 import numpy as np
 
+from .._trajectories import check_trajectories
 from ..model_selection import HamiltonianSearchCV
+from ..model_selection._refine import refine_on_trajectories
 from .errors import UsageError
 from .parser import parse_domain, parse_threshold
 from .search import SearchResult, cv_folds, fit_recording_warnings, search_degrees, usable_denoise
@@ -70,6 +72,13 @@ def run_discovery(args, data):
     n_states = len(data.names)
     labels = [_describe(p, data.names[n_states // 2:]) for p in results["params"]]
     n_candidates = len(labels)
+    refine = None
+    if search.refinement_["status"] == "refined":
+        trajectories, _ = check_trajectories(data.X)
+
+        def refine(regressor):
+            return refine_on_trajectories(regressor, trajectories, data.dt)
+
     return SearchResult(
         best=search.best_estimator_,
         cv_results=results,
@@ -84,6 +93,7 @@ def run_discovery(args, data):
             f"({counted(int(np.sum(results['stage'] == 'finalist')), 'finalist')} scored by "
             f"rollouts), selection = {search.selection}"
         ),
+        refine=refine,
     )
 
 

@@ -43,6 +43,7 @@ def run(args):
     print_choice(result)
     resample_time = resample_chosen(args, data, best)
     intervals = resample_time is not None
+    refinement = _refine_chosen(result, model, intervals, names)
     print(f"learned: {format_hamiltonian(model, state_names=names, intervals=intervals)}")
     print(
         f"fit time: {result.fit_time:.1f} s for {result.n_fits} "
@@ -78,6 +79,9 @@ def run(args):
     if system is not None:
         truth = system.solve(x0, t, max_step=data.step / 10)
         errors = print_errors(t, curves, truth)
+        if "non-SP" in curves and refinement is not None and refinement["status"] == "refined":
+            print("  (SP: the refined coefficients; non-SP: the same candidate's least-squares "
+                  "fit, component by component)")
     band = band_or_none(model, x0, t)
     with warnings.catch_warnings():
         # Where the rollouts leave the training box was said above (or shows
@@ -86,7 +90,8 @@ def run(args):
         print_drift(t, model, {"RK4": rk4, "AVF": avf})
 
     model_path = os.path.join(args.output, MODEL_FILE)
-    save(best, model_path, provenance=_provenance(args, data, result, resample_time))
+    save(best, model_path,
+         provenance=_provenance(args, data, result, resample_time, refinement))
     print(
         f"\nmodel: {model_path} (a fitted Pipeline; sk-hamiltonian show {model_path}, or "
         f"sk_hamiltonian.load in Python)"
@@ -134,7 +139,33 @@ def _prepare_output(directory):
         ) from None
 
 
-def _provenance(args, data, result, resample_time=None):
+def _refine_chosen(result, model, intervals, names):
+    """The search's refinement of ``model``'s coefficients, applied (again, after a refit).
+
+    The resampling refits the chosen regressor by least squares; the
+    search's refinement on the raw trajectories is applied to it once more.
+    Returns the refinement's outcome (None when the search made none).
+    """
+    if result.refine is None:
+        return None
+    info = result.refine(model)
+    if info["status"] != "refined":
+        print(f"refined: no, {info['status']}")
+        return info
+    print(
+        f"refined: the {counted(info['n_terms'], 'kept coefficient')} fitted to the raw "
+        f"trajectories (output error, {counted(info['n_iter'], 'iteration')}); largest "
+        f"change {100 * info['change']:.2g}%"
+        + ("; the intervals stay the least-squares refits' spread" if intervals else "")
+    )
+    if info["noise"] is not None:
+        parts = [f"{name} {np.sqrt(a):.2g} + {100 * np.sqrt(b):.2g}%"
+                 for name, (a, b) in zip(names, info["noise"])]
+        print(f"noise (sd, additive + relative, estimated): {', '.join(parts)}")
+    return info
+
+
+def _provenance(args, data, result, resample_time=None, refinement=None):
     """What the model file records about the data, the search and the resampling."""
     lengths = [len(T) for T in data.X]
     i = result.best_index
@@ -159,6 +190,11 @@ def _provenance(args, data, result, resample_time=None):
             f"{args.resamples} bootstrap resamples of whole "
             f"{'segments' if data.groups is not None else 'trajectories'} (seed {args.seed}), "
             f"{resample_time:.1f} s"
+        ),
+        "refinement": (
+            "none" if refinement is None else
+            "coefficients fitted to the raw trajectories (output error)"
+            if refinement["status"] == "refined" else refinement["status"]
         ),
     }
 

@@ -37,7 +37,9 @@ THRESHOLD_KEY = "hamiltonianregressor__threshold"
 
 SearchResult = namedtuple(
     "SearchResult",
-    ["best", "cv_results", "best_index", "labels", "n_fits", "fit_time", "warned", "summary"],
+    ["best", "cv_results", "best_index", "labels", "n_fits", "fit_time", "warned", "summary",
+     "refine"],
+    defaults=(None,),
 )
 SearchResult.__doc__ = """What a search hands to the report and the model file.
 
@@ -48,7 +50,9 @@ candidate's row in it; ``labels``: a short description per candidate;
 ``n_fits``: the cross-validation fits run (the refit aside); ``fit_time``:
 seconds for the whole search with the refit; ``warned``: the sorted names of
 the warning categories the candidates raised; ``summary``: one line on how
-the search ran, for the model file's provenance.
+the search ran, for the model file's provenance; ``refine``: None, or
+``refine(regressor)``, the search's refinement of the chosen coefficients on
+the raw trajectories, applied again after a refit (returns its outcome).
 """
 
 
