@@ -6,7 +6,8 @@ Finding the law: the search over model spaces, fit targets and sparsity
 what the package can do — the model space (each position polynomial,
 periodic or mixed; a general or a mechanical Hamiltonian), the fit target,
 the de-noising degree, the degree and the sparsity threshold — and returns the
-simplest model the data cannot tell from the best. Two scenes:
+simplest model the data cannot tell from the best, its coefficients fitted to
+the raw trajectories themselves. Two scenes:
 
 * the paper's noisy pendulum (Example 1: 500 trajectories of 41 samples,
   ``dt = 0.01``, 8 % noise): the search finds a periodic angle and keeps
@@ -60,6 +61,7 @@ search = HamiltonianSearchCV(dt=0.01, **settings).fit(X)
 model = search.best_estimator_[-1]
 print("kept spaces:", search.kept_spaces_)
 print("chosen:", search.best_params_)
+print("coefficients:", search.refinement_["status"])  # fitted to the raw trajectories
 print(format_hamiltonian(model))
 
 # %%

@@ -37,14 +37,19 @@ residual, then scores those finalists by rolling them out from an initial
 state fitted to every held-out trajectory's observations and comparing with
 them (the default score), and keeps, among the finalists the data cannot
 tell apart, the fewest terms, the smoothest de-noising and the least biased
-fit target (docs/search.rst). With --paper-grid, the paper's polynomial
-space only: a GridSearchCV over (Q, n), refit = the best mean score. With
+fit target; the chosen model's coefficients are then fitted to the raw
+trajectories themselves (output error, weighted by a noise model estimated
+from the residuals; docs/search.rst). With --paper-grid, the paper's
+polynomial space only: a GridSearchCV over (Q, n), refit = the best mean
+score, no refinement. With
 fewer trajectories than folds (e.g. one long record), the trajectories are
 cut into contiguous segments and each fold holds out one contiguous stretch
 of them (blocked cross-validation). The chosen model is then refitted on 100
 bootstrap resamples of whole trajectories (--resamples, --no-resample), which
 give each term of H~ how often it is kept and a 90 % interval for its
-coefficient, and the figure a prediction band. The report gives the choice,
+coefficient, and the figure a prediction band (the least-squares refits'
+spread; the search's refinement is applied to the point estimate again).
+The report gives the choice,
 the learned H~ with those intervals, the fit time, the trend of H~ along the
 data (a conservation check), the H~ drift along a simulated trajectory (RK4
 and the energy-conserving averaged vector field) and, for the built-in
