@@ -29,14 +29,14 @@ squares, :data:`N_REWEIGHTS` times).
 
 import numpy as np
 
-from ._structure import apply_inverse_symplectic
+from ._structure import apply_structure
 
 # Levenberg-Marquardt: iterations per (re)weighted fit, the relative decrease
-# of the cost below which it stops, and the damping beyond which no step
+# of the cost below which it stops, and Marquardt's lambda beyond which no step
 # downhill is left to find.
 MAX_ITER = 20
 RTOL = 1e-9
-MAX_DAMPING = 1e8
+MAX_LAMBDA = 1e8
 # Fits with weights from the previous fit's residuals, after the unweighted one.
 N_REWEIGHTS = 2
 # A variance model never gives a sample more weight than this many times the
@@ -50,7 +50,11 @@ class TrajectoryFitError(RuntimeError):
 
 
 class FlowModel:
-    """``x' = J^{-1} G(x) theta``: a Hamiltonian linear in its coefficients.
+    """``x' = (J^{-1} - Gamma) G(x) theta``: a Hamiltonian linear in its coefficients.
+
+    The parameters are ``theta``, followed by the friction ``gamma`` of each
+    momentum (``Gamma`` subtracts ``gamma_i dH/dp_i`` from ``dp_i/dt``) when
+    ``n_damped`` is the number of momenta.
 
     Parameters
     ----------
@@ -62,26 +66,53 @@ class FlowModel:
         ``theta``, ndarray of shape (n_samples, n_states, n_states).
     wrap_difference : callable
         Differences of states, periodic components wrapped into their period.
+    n_damped : int, default=0
+        Number of friction parameters at the end of the parameters: 0 (no
+        friction) or the number of momenta.
     """
 
-    def __init__(self, gradients, hessian, wrap_difference):
+    def __init__(self, gradients, hessian, wrap_difference, n_damped=0):
         self.gradients = gradients
         self.hessian = hessian
         self.wrap_difference = wrap_difference
+        self.n_damped = n_damped
 
-    def rates(self, x, theta, Sx=None, St=None):
-        """The field at ``x``, and the sensitivities' rates when ``Sx`` and ``St`` are given."""
+    def split(self, params):
+        """``(theta, gamma)``; ``gamma`` None without friction."""
+        if not self.n_damped:
+            return params, None
+        return params[: -self.n_damped], params[-self.n_damped :]
+
+    def project(self, params):
+        """The nearest admissible parameters: friction is never negative."""
+        if not self.n_damped:
+            return params
+        params = params.copy()
+        params[-self.n_damped :] = np.maximum(params[-self.n_damped :], 0.0)
+        return params
+
+    def rates(self, x, params, Sx=None, Sp=None):
+        """The field at ``x``, and the sensitivities' rates when ``Sx`` and ``Sp`` are given."""
+        theta, gamma = self.split(params)
         G = self.gradients(x)
-        field = apply_inverse_symplectic(G @ theta)
+        g = G @ theta
+        field = apply_structure(g, gamma)
         if Sx is None:
             return field, None, None
-        H = self.hessian(x, theta)
-        return field, _symplectic(H @ Sx), _symplectic(H @ St + G)
+        jacobian = _columns(self.hessian(x, theta), gamma)
+        forcing = _columns(G, gamma)
+        if gamma is not None:
+            # d (dp_i/dt) / d gamma_i = -dH/dp_i.
+            n, d = len(x), x.shape[1] // 2
+            friction = np.zeros((n, 2 * d, d))
+            friction[:, np.arange(d), np.arange(d)] = -g[:, :d]
+            forcing = np.concatenate([forcing, friction], axis=2)
+        return field, jacobian @ Sx, jacobian @ Sp + forcing
 
 
-def _symplectic(M):
-    """``J^{-1} M`` for matrices ``M`` of shape (n, n_states, k): Hamilton's map on each column."""
-    return apply_inverse_symplectic(M.swapaxes(1, 2)).swapaxes(1, 2)
+def _columns(M, gamma):
+    """``(J^{-1} - Gamma) M`` for matrices ``M`` of shape (n, n_states, k), column by column."""
+    return apply_structure(M.swapaxes(1, 2), gamma).swapaxes(1, 2)
 
 
 def flow(model, theta, x0, steps, sensitivities=True):
@@ -90,7 +121,8 @@ def flow(model, theta, x0, steps, sensitivities=True):
     Parameters
     ----------
     model : FlowModel
-    theta : ndarray of shape (n_terms,)
+    theta : ndarray of shape (n_params,)
+        The model's parameters (coefficients, then any friction: :class:`FlowModel`).
     x0 : ndarray of shape (n_trajectories, n_states)
         States at the first sample time.
     steps : list of ndarray
@@ -102,7 +134,7 @@ def flow(model, theta, x0, steps, sensitivities=True):
     -------
     X : ndarray of shape (n_trajectories, n_times, n_states)
     SX : ndarray of shape (n_trajectories, n_times, n_states, n_states) or None
-    ST : ndarray of shape (n_trajectories, n_times, n_states, n_terms) or None
+    ST : ndarray of shape (n_trajectories, n_times, n_states, n_params) or None
     """
     n, d = x0.shape
     k = len(theta)
@@ -156,8 +188,9 @@ def fit_trajectories(model, theta, groups, *, max_iter=MAX_ITER, n_reweights=N_R
     Parameters
     ----------
     model : FlowModel
-    theta : ndarray of shape (n_terms,)
-        Starting coefficients (the least-squares fit's).
+    theta : ndarray of shape (n_params,)
+        Starting parameters (the least-squares fit's coefficients, then any
+        friction: :class:`FlowModel`).
     groups : list of (ndarray, list of ndarray)
         ``(Y, steps)``: trajectories ``Y`` of shape (n_trajectories, n_times,
         n_states) observed at common times, and the RK4 steps between them
@@ -217,8 +250,8 @@ def _levenberg_marquardt(model, theta, x0s, groups, max_iter):
     """Minimise the weighted cost over ``theta`` and the initial states.
 
     Stops after ``max_iter`` iterations, when an accepted step lowers the cost
-    by less than :data:`RTOL` of it, or when the damping exceeds
-    :data:`MAX_DAMPING` (no step downhill left). Returns ``(theta, x0s,
+    by less than :data:`RTOL` of it, or when Marquardt's lambda exceeds
+    :data:`MAX_LAMBDA` (no step downhill left). Returns ``(theta, x0s,
     n_iter)``.
     """
     runs = _simulate(model, theta, x0s, groups)
@@ -226,32 +259,32 @@ def _levenberg_marquardt(model, theta, x0s, groups, max_iter):
         raise TrajectoryFitError(
             "the model's simulation of the training trajectories is not finite")
     cost = _cost(model, groups, runs)
-    damping = 1e-6
+    lam = 1e-6
     for n_iter in range(1, max_iter + 1):
-        step_theta, steps_x0 = _gauss_newton_step(model, groups, runs, damping)
-        new_theta = theta + step_theta
+        step_theta, steps_x0 = _gauss_newton_step(model, groups, runs, lam)
+        new_theta = model.project(theta + step_theta)
         new_x0s = [x0 + dx for x0, dx in zip(x0s, steps_x0)]
         new_runs = _simulate(model, new_theta, new_x0s, groups)
         new_cost = np.inf if new_runs is None else _cost(model, groups, new_runs)
         if new_cost < cost:
             done = cost - new_cost < RTOL * cost
             theta, x0s, runs, cost = new_theta, new_x0s, new_runs, new_cost
-            damping = max(damping / 10, 1e-12)
+            lam = max(lam / 10, 1e-12)
             if done:
                 break
         else:
-            damping *= 100
-            if damping > MAX_DAMPING:
+            lam *= 100
+            if lam > MAX_LAMBDA:
                 break
     return theta, x0s, n_iter
 
 
-def _gauss_newton_step(model, groups, runs, damping):
+def _gauss_newton_step(model, groups, runs, lam):
     """The damped Gauss-Newton step, initial states eliminated by their Schur complement.
 
     The normal matrix is ``[[diag(A_k^T A_k), A_k^T B_k], [B_k^T A_k, sum_k
     B_k^T B_k]]`` with ``A_k = d r_k / d x0_k`` and ``B_k = d r_k / d theta``;
-    its diagonal is scaled by ``1 + damping`` (Marquardt).
+    its diagonal is scaled by ``1 + lam`` (Marquardt).
     """
     k = runs[0][2].shape[-1]
     S, rhs, parts = np.zeros((k, k)), np.zeros(k), []
@@ -261,7 +294,7 @@ def _gauss_newton_step(model, groups, runs, damping):
         A = (SX * g.W[..., None]).reshape(n, n_times * d, d)
         B = (ST * g.W[..., None]).reshape(n, n_times * d, k)
         AA = np.einsum("nri,nrj->nij", A, A)
-        AA += damping * AA * np.eye(d)
+        AA += lam * AA * np.eye(d)
         AB = np.einsum("nri,nrj->nij", A, B)
         Ar = np.einsum("nri,nr->ni", A, r)
         AA_inv = np.linalg.inv(AA)
@@ -269,7 +302,7 @@ def _gauss_newton_step(model, groups, runs, damping):
         S += np.einsum("nri,nrj->ij", B, B) - np.einsum("nji,njk->ik", AB, AA_inv_AB)
         rhs += np.einsum("nri,nr->i", B, r) - np.einsum("nji,nj->i", AA_inv_AB, Ar)
         parts.append((AA_inv, AA_inv_AB, Ar))
-    S[np.diag_indices(k)] *= 1 + damping
+    S[np.diag_indices(k)] *= 1 + lam
     step_theta = np.linalg.lstsq(S, rhs, rcond=None)[0]
     steps_x0 = [np.einsum("nij,nj->ni", AA_inv, Ar) - AA_inv_AB @ step_theta
                 for AA_inv, AA_inv_AB, Ar in parts]

@@ -19,10 +19,11 @@ def refine_on_trajectories(regressor, trajectories, dt):
     """Refit the kept terms of a fitted ``HamiltonianRegressor`` to raw trajectories.
 
     The kept terms are those of the readable form (monomials, ``cos``,
-    ``sin``), the constant aside; their coefficients and every trajectory's
+    ``sin``), the constant aside; their coefficients, the friction of a model
+    fitted with ``damping=True`` (kept non-negative) and every trajectory's
     initial state are fitted by :func:`~sk_hamiltonian._trajectory_fit.fit_trajectories`,
-    starting from the regressor's, and ``coef_`` and ``support_`` are updated
-    in place.
+    starting from the regressor's, and ``coef_``, ``support_`` and
+    ``damping_`` are updated in place.
 
     Parameters
     ----------
@@ -43,8 +44,6 @@ def refine_on_trajectories(regressor, trajectories, dt):
         variable), ``rms`` (the root-mean-square residual per variable) and
         ``change`` (the largest relative change of a readable coefficient).
     """
-    if np.any(regressor.damping_):
-        return dict(status="kept: the model has friction, which the refinement does not fit")
     space = regressor._space
     readable = space.readable_basis()
     values = readable.from_fitting @ regressor.coef_
@@ -61,22 +60,27 @@ def refine_on_trajectories(regressor, trajectories, dt):
     rows = np.any(to_fitting != 0, axis=1)
     sub = ModelSpace(space.domain, space.powers[rows], space.periodic, space.mixed)
     columns = to_fitting[rows]
+    damped = bool(regressor.damping)
     model = FlowModel(
         gradients=lambda X: sub.gradients(X) @ columns,
         hessian=lambda X, theta: sub.hessian_dot(X, columns @ theta),
         wrap_difference=sub.wrap_difference,
+        n_damped=len(regressor.damping_) if damped else 0,
     )
     groups = _groups(trajectories, dt, regressor._default_step("rk4"))
     theta0 = values[terms]
+    start = np.concatenate([theta0, regressor.damping_]) if damped else theta0
     try:
         with np.errstate(all="ignore"):
-            result = fit_trajectories(model, theta0, groups)
+            result = fit_trajectories(model, start, groups)
     except TrajectoryFitError as error:
         return dict(status=f"kept: {error}")
-    theta = result["theta"]
-    if not np.all(np.isfinite(theta)):
+    if not np.all(np.isfinite(result["theta"])):
         return dict(status="kept: the refined coefficients are not finite")
+    theta, friction = model.split(result["theta"])
     regressor.coef_ = regressor.coef_ + to_fitting @ (theta - theta0)
+    if damped:
+        regressor.damping_ = friction
     regressor.support_ = regressor.support_ | rows
     regressor._rebuild_fitted()
     change = float(np.max(np.abs(theta - theta0) / np.abs(theta0)))

@@ -153,9 +153,9 @@ class HamiltonianSearchCV(BaseEstimator):
         constant in the data.
     refine : {"trajectories"} or None, default="trajectories"
         Refit the chosen model's kept coefficients to the raw trajectories
-        (stage 4). Skipped, with the reason in ``refinement_``, for a model
-        with friction or more than 40 terms, or whose simulation of the
-        training trajectories fails. None: the least-squares fit of the
+        (stage 4), with the friction of a model fitted with ``damping``.
+        Skipped, with the reason in ``refinement_``, for a model of more than
+        40 terms, or whose simulation of the training trajectories fails. None: the least-squares fit of the
         chosen candidate, as refitted.
     selection : {"simplest", "best_score"}, default="simplest"
         The final choice among the finalists' rollout scores.
