@@ -126,7 +126,10 @@ def flow(model, theta, x0, steps, sensitivities=True):
     x0 : ndarray of shape (n_trajectories, n_states)
         States at the first sample time.
     steps : list of ndarray
-        ``steps[j]``: the RK4 steps from sample ``j`` to sample ``j + 1``.
+        ``steps[j]``: the RK4 steps from sample ``j`` to sample ``j + 1``,
+        of shape (n_substeps,) (shared by all trajectories) or (n_substeps,
+        n_trajectories) (one column per trajectory, for trajectories sampled
+        at times of their own).
     sensitivities : bool, default=True
         Also integrate ``d x / d x0`` and ``d x / d theta``.
 
@@ -158,15 +161,18 @@ def flow(model, theta, x0, steps, sensitivities=True):
 
 
 def _rk4_step(model, theta, state, h):
+    def scaled(c, r):  # a step per trajectory scales the rows of r
+        return c * r if np.ndim(c) == 0 else c.reshape((-1,) + (1,) * (r.ndim - 1)) * r
+
     def rates(shift, c):
-        x, Sx, St = (None if s is None else s + c * r for s, r in zip(state, shift))
+        x, Sx, St = (None if s is None else s + scaled(c, r) for s, r in zip(state, shift))
         return model.rates(x, theta, Sx, St)
 
     k1 = model.rates(state[0], theta, state[1], state[2])
     k2 = rates(k1, h / 2)
     k3 = rates(k2, h / 2)
     k4 = rates(k3, h)
-    return [None if s is None else s + h / 6 * (a + 2 * b + 2 * c + e)
+    return [None if s is None else s + scaled(h / 6, a + 2 * b + 2 * c + e)
             for s, a, b, c, e in zip(state, k1, k2, k3, k4)]
 
 

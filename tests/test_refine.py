@@ -150,3 +150,23 @@ def test_fit_trajectories_says_when_the_start_cannot_be_simulated():
     )
     with pytest.raises(TrajectoryFitError, match="not finite"):
         fit_trajectories(model, np.ones(1), [(np.zeros((2, 3, 2)), [np.ones(1)] * 2)])
+
+
+def test_trajectories_sampled_at_times_of_their_own():
+    # Exact trajectories, each sampled at jittered times of its own: one group,
+    # a step per trajectory, and the exact coefficients again.
+    system = single_pendulum()
+    rng = np.random.default_rng(0)
+    x0 = make_trajectories(system, 20, 1, dt=DT, random_state=0)[:, 0]
+    stamped = []
+    for state in x0:
+        t = np.cumsum(np.r_[0.0, rng.uniform(0.5 * DT, 1.5 * DT, size=40)])
+        stamped.append(np.column_stack([t, system.solve(state, t, max_step=1e-4)]))
+    Xt = DerivativeTransformer(method="finite_difference").fit_transform(stamped)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        model = HamiltonianRegressor(degree=4, threshold=0.01, momentum_degree=2,
+                                     periodic=[False, True]).fit(Xt)
+    info = refine_on_trajectories(model, stamped, None)
+    assert info["status"] == "refined"
+    assert relative_errors(model).max() < 1e-6

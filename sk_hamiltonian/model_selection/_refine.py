@@ -89,24 +89,28 @@ def refine_on_trajectories(regressor, trajectories, dt):
 
 
 def _groups(trajectories, dt, max_step):
-    """Trajectories grouped by their sample times (relative to the first), with RK4 steps.
+    """Trajectories grouped by length, with the RK4 steps between their samples.
 
     Each interval between samples is cut into equal steps of at most
-    ``max_step``.
+    ``max_step``; trajectories of one length integrate side by side, each
+    with steps of its own when their sample times differ.
     """
-    by_times = {}
+    by_length = {}
     for T in trajectories:
-        if dt is None:
-            times, states = T[:, 0] - T[0, 0], T[:, 1:]
-        else:
-            times, states = dt * np.arange(len(T)), T
-        key = (len(times), np.round(times, 12).tobytes())
-        by_times.setdefault(key, (times, []))[1].append(states)
+        by_length.setdefault(len(T), []).append(T)
     groups = []
-    for times, states in by_times.values():
+    for members in by_length.values():
+        if dt is None:
+            times = np.stack([T[:, 0] for T in members])
+            states = np.stack([T[:, 1:] for T in members])
+        else:
+            times = dt * np.arange(len(members[0]))[np.newaxis]
+            states = np.stack(members)
+        intervals = np.diff(times, axis=1)  # (n_trajectories or 1, n_times - 1)
         steps = []
-        for h in np.diff(times):
-            n = max(1, math.ceil(h / max_step - 1e-9))
-            steps.append(np.full(n, h / n))
-        groups.append((np.stack(states), steps))
+        for h in intervals.T:
+            n = max(1, math.ceil(np.max(h) / max_step - 1e-9))
+            steps.append(np.repeat((h / n)[np.newaxis], n, axis=0) if len(h) > 1
+                         else np.full(n, h[0] / n))
+        groups.append((states, steps))
     return groups
