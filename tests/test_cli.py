@@ -693,6 +693,9 @@ def test_damping_and_joblib_options(tmp_path, capsys):
     assert status == 0
     model = load(tmp_path / "model.skh")
     assert model[-1].damping and model[-1].damping_[0] > 0
+    # The report gives the friction, and never suggests the option in use.
+    assert f"friction: gamma_p = {model[-1].damping_[0]:.4g}" in out
+    assert "--damping (Hamiltonian" not in out
     assert "(--joblib; a pickle: loading it runs any code it carries" in out
     import joblib
 
@@ -967,3 +970,18 @@ def test_report_figure_against_the_truth_zooms_on_the_end(demo, tmp_path, saved_
     low, high = full.get_ylim()
     assert -15 < low < -5 and 5 < high < 15
     assert full.get_title().endswith("(non-SP runs off the frame)")
+
+
+@pytest.mark.parametrize("damping,reading", [
+    (0.0, "a conservative model cannot follow; --damping"),
+    (0.3, "as the fitted friction has it"),
+])
+def test_a_falling_energy_is_read_by_the_friction_fitted(damping, reading):
+    from types import SimpleNamespace
+
+    from sk_hamiltonian._cli.report import describe_energy_trend
+
+    # A trend of -40 % of the spread per unit time, z = -12, period about 2.
+    model = SimpleNamespace(energy_trend_=-0.4, energy_trend_z_=-12.0, time_scale_=0.32,
+                            damping_=np.array([damping]))
+    assert reading in describe_energy_trend(model)

@@ -45,6 +45,11 @@ def run(args):
     intervals = resample_time is not None
     refinement = _refine_chosen(result, model, intervals, names)
     print(f"learned: {format_hamiltonian(model, state_names=names, intervals=intervals)}")
+    if model.damping:
+        d = len(model.damping_)
+        print("friction: " + ", ".join(
+            f"gamma_{name} = {value:.4g}" for name, value in zip(names[:d], model.damping_))
+            + f" (dp/dt = -dH/dq - gamma dH/dp)")
     print(
         f"fit time: {result.fit_time:.1f} s for {result.n_fits} "
         f"cross-validation fits and the refit"
@@ -153,7 +158,9 @@ def _refine_chosen(result, model, intervals, names):
         print(f"refined: no, {info['status']}")
         return info
     print(
-        f"refined: the {counted(info['n_terms'], 'kept coefficient')} fitted to the raw "
+        f"refined: the {counted(info['n_terms'], 'kept coefficient')}"
+        + (" and the friction" if model.damping else "")
+        + " fitted to the raw "
         f"trajectories (output error, {counted(info['n_iter'], 'iteration')}); largest "
         f"change {100 * info['change']:.2g}%"
         + ("; the intervals stay the least-squares refits' spread" if intervals else "")

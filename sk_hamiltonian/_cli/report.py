@@ -34,6 +34,8 @@ def describe_energy_trend(model):
             f"significant but small ({per_period}, below {TREND_SIZE:.0%}): the data look "
             f"conservative"
         )
+    elif verdict == "loses" and np.any(model.damping_):
+        reading = f"H~ falls along the data ({per_period}), as the fitted friction has it"
     elif verdict == "loses":
         reading = (
             f"H~ falls along the data ({per_period}): they look dissipative (friction), which "
