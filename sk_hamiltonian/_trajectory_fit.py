@@ -223,14 +223,18 @@ def fit_trajectories(model, theta, groups, *, max_iter=MAX_ITER, n_reweights=N_R
     groups = [_Group(np.asarray(Y, dtype=float), steps) for Y, steps in groups]
     x0s = [g.Y[:, 0].copy() for g in groups]
     theta = np.asarray(theta, dtype=float)
+    runs = _simulate(model, theta, x0s, groups)
+    if runs is None:
+        raise TrajectoryFitError(
+            "the model's simulation of the training trajectories is not finite")
     n_iter, noise = 0, None
     for round_ in range(n_reweights + 1):
         if round_:
-            noise = _reweight(model, theta, x0s, groups)
-        theta, x0s, used = _levenberg_marquardt(model, theta, x0s, groups, max_iter)
+            # The states do not depend on the weights: the last fit's serve.
+            noise = _reweight(model, groups, [run[0] for run in runs])
+        theta, x0s, runs, used = _levenberg_marquardt(model, theta, x0s, runs, groups, max_iter)
         n_iter += used
-    residuals = [model.wrap_difference(g.Y - flow(model, theta, x0, g.steps, False)[0])
-                 for g, x0 in zip(groups, x0s)]
+    residuals = [model.wrap_difference(g.Y - run[0]) for g, run in zip(groups, runs)]
     d = groups[0].Y.shape[-1]
     rms = np.sqrt(np.mean(np.concatenate([r.reshape(-1, d) for r in residuals]) ** 2, axis=0))
     return dict(theta=theta, x0=x0s, n_iter=n_iter, noise=noise, rms=rms)
@@ -252,18 +256,15 @@ def _cost(model, groups, runs):
     return sum(float(np.sum(g.residuals(model, run[0]) ** 2)) for g, run in zip(groups, runs))
 
 
-def _levenberg_marquardt(model, theta, x0s, groups, max_iter):
+def _levenberg_marquardt(model, theta, x0s, runs, groups, max_iter):
     """Minimise the weighted cost over ``theta`` and the initial states.
 
+    ``runs`` are the simulations (:func:`_simulate`) of the starting point.
     Stops after ``max_iter`` iterations, when an accepted step lowers the cost
     by less than :data:`RTOL` of it, or when Marquardt's lambda exceeds
-    :data:`MAX_LAMBDA` (no step downhill left). Returns ``(theta, x0s,
+    :data:`MAX_LAMBDA` (no step downhill left). Returns ``(theta, x0s, runs,
     n_iter)``.
     """
-    runs = _simulate(model, theta, x0s, groups)
-    if runs is None:
-        raise TrajectoryFitError(
-            "the model's simulation of the training trajectories is not finite")
     cost = _cost(model, groups, runs)
     lam = 1e-6
     for n_iter in range(1, max_iter + 1):
@@ -282,7 +283,7 @@ def _levenberg_marquardt(model, theta, x0s, groups, max_iter):
             lam *= 100
             if lam > MAX_LAMBDA:
                 break
-    return theta, x0s, n_iter
+    return theta, x0s, runs, n_iter
 
 
 def _gauss_newton_step(model, groups, runs, lam):
@@ -315,14 +316,14 @@ def _gauss_newton_step(model, groups, runs, lam):
     return step_theta, steps_x0
 
 
-def _reweight(model, theta, x0s, groups):
+def _reweight(model, groups, states):
     """Weights from each variable's noise model ``a_i + b_i x_i^2``; returns the model.
 
-    The variances are fitted to the squared unweighted residuals by least
+    ``states`` are the fitted model's simulations of each group. The
+    variances are fitted to the squared unweighted residuals by least
     squares (negative parts set to zero) and floored at the average
     variance over :data:`MAX_RELATIVE_WEIGHT` squared.
     """
-    states = [flow(model, theta, x0, g.steps, False)[0] for g, x0 in zip(groups, x0s)]
     d = groups[0].Y.shape[-1]
     x = np.concatenate([X.reshape(-1, d) for X in states])
     r = np.concatenate([model.wrap_difference(g.Y - X).reshape(-1, d)

@@ -49,7 +49,7 @@ def run(args):
         d = len(model.damping_)
         print("friction: " + ", ".join(
             f"gamma_{name} = {value:.4g}" for name, value in zip(names[:d], model.damping_))
-            + f" (dp/dt = -dH/dq - gamma dH/dp)")
+            + " (dp/dt = -dH/dq - gamma dH/dp)")
     print(
         f"fit time: {result.fit_time:.1f} s for {result.n_fits} "
         f"cross-validation fits and the refit"

@@ -91,8 +91,8 @@ class HamiltonianSearchCV(BaseEstimator):
     and model space, the normal equations of every fold come from one pass
     over the data, and every degree and threshold is a smaller solve on them.
 
-    The search runs in four stages, all on the same folds of whole
-    trajectories:
+    The search runs in three stages on the same folds of whole trajectories,
+    and a fourth on all of them:
 
     1. **Screen** the model spaces (``spaces``) on one reference layout (the
        middle de-noising degree) and the derivative fit, at the smallest
@@ -155,8 +155,8 @@ class HamiltonianSearchCV(BaseEstimator):
         Refit the chosen model's kept coefficients to the raw trajectories
         (stage 4), with the friction of a model fitted with ``damping``.
         Skipped, with the reason in ``refinement_``, for a model of more than
-        40 terms, or whose simulation of the training trajectories fails. None: the least-squares fit of the
-        chosen candidate, as refitted.
+        40 terms, or whose simulation of the training trajectories fails.
+        None: the least-squares fit of the chosen candidate, as refitted.
     selection : {"simplest", "best_score"}, default="simplest"
         The final choice among the finalists' rollout scores.
         ``"best_score"``: the best mean score. ``"simplest"``: among the
