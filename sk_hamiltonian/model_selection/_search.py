@@ -1,4 +1,11 @@
-"""HamiltonianSearchCV: model spaces, fit targets, de-noising, degree and sparsity, cross-validated."""
+"""HamiltonianSearchCV: model spaces, fit targets, de-noising, degree and sparsity, cross-validated.
+
+The estimator runs the stages of its own modules on one set of folds:
+:mod:`._prepare` (the data: spikes, duplicates, long records, the folds),
+:mod:`._screen` (the model spaces), :mod:`._degrees` (degrees and thresholds,
+one finalist per layout and fit target), :mod:`._finalists` (the choice) and
+:mod:`._refine` (the chosen coefficients fitted to the trajectories).
+"""
 
 import itertools
 import time
@@ -7,7 +14,6 @@ from numbers import Integral, Real
 
 import numpy as np
 from sklearn.base import BaseEstimator
-from sklearn.model_selection import check_cv
 from sklearn.pipeline import Pipeline
 from sklearn.utils._param_validation import Interval, StrOptions
 from sklearn.utils.parallel import Parallel, delayed
@@ -16,69 +22,17 @@ from sklearn.utils.validation import check_is_fitted
 from .._derivatives import DerivativeTransformer
 from .._hamiltonian import HamiltonianRegressor
 from .._trajectories import check_trajectories
-from ._fold_problems import FoldProblems, take
-from ._refine import refine_on_trajectories
-from ._selection import SELECTIONS, pick_among, pick_within
+from ._degrees import failure_reason, search_unit
+from ._finalists import choose
+from ._prepare import prepare
+from ._refine import refine_chosen
+from ._results import cv_results, describe_layout, transformer_params
+from ._screen import auto_spaces, screen, screen_layout, screen_target
+from ._selection import SELECTIONS
 
 FIT_TARGETS = ("derivatives", "steps", "simpson", "weak")
-FAMILIES = ("polynomial", "periodic", "mixed")
-# Position coordinates searched one by one up to this many degrees of
-# freedom; beyond, all positions share one family (3**d spaces grow fast).
-PER_COORDINATE_DOF = 2
-# Spaces kept after the screen, at most.
-MAX_SPACES = 3
-# Training equations per unknown a candidate needs in every fold.
-ROWS_PER_UNKNOWN = 2
-
-
-def auto_spaces(n_states):
-    """The model spaces ``spaces="auto"`` searches for data with ``n_states`` variables.
-
-    Each position coordinate is polynomial, periodic (an angle of period
-    ``2 pi``) or mixed (both families); each combination is offered as a
-    general Hamiltonian and as a mechanical one (``momentum_degree=2``).
-
-    Parameters
-    ----------
-    n_states : int
-        Number of state variables ``2d``.
-
-    Returns
-    -------
-    spaces : list of dict
-        Parameters of :class:`~sk_hamiltonian.HamiltonianRegressor`.
-    """
-    d = n_states // 2
-    if d <= PER_COORDINATE_DOF:
-        choices = list(itertools.product(FAMILIES, repeat=d))
-    else:
-        choices = [(family,) * d for family in FAMILIES]
-    spaces = []
-    for families in choices:
-        space = {}
-        for name in ("periodic", "mixed"):
-            flags = [False] * d + [family == name for family in families]
-            if any(flags):
-                space[name] = flags
-        for structure in ({}, {"momentum_degree": 2}):
-            spaces.append({**space, **structure})
-    return spaces
-
-
-def _pipeline_params(denoise, fit_on, space, degree, threshold, damping, domain=None):
-    """Parameters of ``make_pipeline(DerivativeTransformer(), HamiltonianRegressor())``."""
-    params = {f"derivativetransformer__{key}": value
-              for key, value in _transformer_params(denoise).items()}
-    for key, value in space.items():
-        params[f"hamiltonianregressor__{key}"] = value
-    params["hamiltonianregressor__degree"] = int(degree)
-    params["hamiltonianregressor__threshold"] = float(threshold)
-    params["hamiltonianregressor__fit_on"] = fit_on
-    if damping:
-        params["hamiltonianregressor__damping"] = True
-    if domain is not None:
-        params["hamiltonianregressor__domain"] = domain
-    return params
+# Fit targets kept for exact data: those whose truncation error is O(dt**4).
+CLEAN_FIT_TARGETS = ("simpson", "weak")
 
 
 class HamiltonianSearchCV(BaseEstimator):
@@ -293,43 +247,44 @@ class HamiltonianSearchCV(BaseEstimator):
         start = time.perf_counter()
         trajectories, _ = check_trajectories(X, min_times=3)
         n_states = trajectories[0].shape[1] - (1 if self.dt is None else 0)
-        denoise = self._check_denoise(min(T.shape[0] for T in trajectories))
         degrees = self._check_values("degrees", self.degrees, integer=True, low=1)
         thresholds = self._check_values("thresholds", self.thresholds, integer=False, low=0)
         fit_on = self._check_fit_on()
         spaces = auto_spaces(n_states) if self.spaces == "auto" else self._check_spaces()
-        n_trajectories = len(trajectories)
-        cv = check_cv(self.cv)
-        folds = [test for _, test in cv.split(np.zeros((n_trajectories, 1)), groups=groups)]
+        # Stage 0: the data as the folds will see them.
+        prepared = prepare(trajectories, self.dt, self.cv, groups)
+        X, trajectories, folds = prepared.X, prepared.trajectories, prepared.folds
         if len(folds) < 2:
             raise ValueError(f"cv must give at least 2 folds; got {len(folds)}.")
+        if prepared.report["segments"] is not None:
+            self._say(f"segments: {prepared.report['segments']['rule']}")
+        denoise = self._check_denoise(min(T.shape[0] for T in trajectories))
+        clean = prepared.report["clean"]
+        if clean:
+            # Exact data: de-noising only adds bias, and only the fit targets
+            # of O(dt**4) reach the law's own precision.
+            denoise = [v for v in denoise if v == "finite_difference"] or denoise[:1]
+            fit_on = [v for v in fit_on if v in CLEAN_FIT_TARGETS] or fit_on
+            self._say(f"clean data: layouts {denoise}, fit targets {fit_on}")
         layouts = {
-            key: DerivativeTransformer(dt=self.dt, **_transformer_params(key)).fit_transform(X)
+            key: DerivativeTransformer(dt=self.dt, **transformer_params(key)).fit_transform(X)
             for key in denoise
         }
         # Stage 1: the spaces, on the reference layout and fit target.
-        reference = _reference(denoise)
-        target = "derivatives" if "derivatives" in fit_on else fit_on[0]
-        self._say(f"screen: {len(spaces)} spaces on {_describe_layout(reference)}, {target}, "
+        reference = screen_layout(denoise)
+        target = screen_target(fit_on, clean)
+        self._say(f"screen: {len(spaces)} spaces on {describe_layout(reference)}, {target}, "
                   f"degree {degrees[0]}")
-        screened = Parallel(n_jobs=self.n_jobs)(
-            delayed(_unit)(layouts[reference], folds, [space], target, [degrees[0]], thresholds,
-                           self.damping, self.domain, reference, rollout=False)
-            for space in spaces
-        )
-        records, failures = [], []
-        for k, (unit_records, _, unit_failures) in enumerate(screened):
-            failures.extend(unit_failures)
-            for record in unit_records:
-                record.update(space=k, stage="screen")
-            records.extend(unit_records)
-        kept = _kept_spaces(records, failures, spaces)
+        records, failures, kept = screen(layouts[reference], folds, spaces, target, degrees[0],
+                                         thresholds, self.damping, self.domain, reference,
+                                         self.n_jobs)
         self._say(f"kept: {[spaces[k] for k in kept]}")
-        # Stages 2 and 3: every layout and fit target in the kept spaces.
+        # Stage 2: every layout and fit target in the kept spaces, a finalist each.
         pairs = list(itertools.product(denoise, fit_on))
         results = Parallel(n_jobs=self.n_jobs)(
-            delayed(_unit)(layouts[key], folds, [spaces[k] for k in kept], target_, degrees,
-                           thresholds, self.damping, self.domain, key, rollout=True)
+            delayed(search_unit)(layouts[key], folds, [spaces[k] for k in kept], target_,
+                                 degrees, thresholds, self.damping, self.domain, key,
+                                 rollout=True)
             for key, target_ in pairs
         )
         finalists = []
@@ -344,14 +299,11 @@ class HamiltonianSearchCV(BaseEstimator):
         if not finalists:
             raise ValueError(
                 "No candidate could be fitted and scored in every fold. Give more "
-                "trajectories, lower degrees, or fewer folds." + _reason(failures)
+                "trajectories, lower degrees, or fewer folds." + failure_reason(failures)
             )
-        scores = np.array([records[i]["scores"] for i in finalists])
-        choice, tied = pick_among(
-            scores, [records[i]["n_terms"] for i in finalists],
-            [_smoothing(records[i]["denoise"]) for i in finalists],
-            [records[i]["fit_on"] for i in finalists], self.selection,
-        )
+        # Stage 3: the choice among the finalists.
+        choice, tied, judgement = choose(records, finalists, self.selection, trajectories,
+                                         self.dt, prepared.report["noise"])
         if choice is None:
             raise ValueError(
                 "Every finalist's rollout failed in some fold: no candidate can be "
@@ -359,13 +311,18 @@ class HamiltonianSearchCV(BaseEstimator):
             )
         for i, flag in zip(finalists, tied):
             records[i]["tied"] = bool(flag)
+        for record in records:
+            record.pop("fitted", None)
+        self.preparation_ = prepared.report
+        self.judgement_ = judgement
         self.spaces_ = spaces
         self.kept_spaces_ = [spaces[k] for k in kept]
         self.n_splits_ = len(folds)
-        self.cv_results_ = _cv_results(records, spaces, len(folds), self.damping, self.domain)
+        self.cv_results_ = cv_results(records, spaces, len(folds), self.damping, self.domain)
         self.best_index_ = finalists[choice]
         self.best_params_ = self.cv_results_["params"][self.best_index_]
         self.best_score_ = float(self.cv_results_["mean_test_score"][self.best_index_])
+        # Stage 4: the refit on all the data, and its coefficients on the trajectories.
         refit_start = time.perf_counter()
         self.best_estimator_ = Pipeline([
             ("derivativetransformer", DerivativeTransformer(dt=self.dt)),
@@ -374,8 +331,8 @@ class HamiltonianSearchCV(BaseEstimator):
         self.refinement_ = dict(status="not asked")
         if self.refine == "trajectories":
             self._say("refine: the chosen model's coefficients on the raw trajectories")
-            self.refinement_ = refine_on_trajectories(
-                self.best_estimator_[-1], trajectories, self.dt)
+            self.refinement_ = refine_chosen(self.best_estimator_, X, trajectories, self.dt,
+                                             folds)
             self._say(f"refine: {self.refinement_['status']}")
         self.refit_time_ = time.perf_counter() - refit_start
         self.search_time_ = time.perf_counter() - start
@@ -532,209 +489,3 @@ class HamiltonianSearchCV(BaseEstimator):
                     f"{sorted(allowed)}; got {space!r}."
                 )
         return [dict(space) for space in self.spaces]
-
-
-def _transformer_params(denoise):
-    if denoise == "finite_difference":
-        return {"method": "finite_difference"}
-    return {"method": "polynomial", "degree": int(denoise)}
-
-
-def _describe_layout(denoise):
-    return "finite differences" if denoise == "finite_difference" else f"Q={denoise}"
-
-
-def _smoothing(denoise):
-    """Order of layouts from the smoothest: the de-noising degree, finite differences last."""
-    return np.inf if denoise == "finite_difference" else float(denoise)
-
-
-def _reference(denoise):
-    """The layout the spaces are screened on: the middle de-noising degree."""
-    polynomial = sorted(v for v in denoise if v != "finite_difference")
-    return polynomial[len(polynomial) // 2] if polynomial else "finite_difference"
-
-
-def _reason(failures):
-    """The first failure's message, as the end of an error message."""
-    return f" The first candidate's error: {failures[0]}" if failures else ""
-
-
-def _unit(Xt, folds, spaces, fit_on, degrees, thresholds, damping, domain, denoise, rollout):
-    """Every candidate of one layout and fit target in ``spaces``; with ``rollout``, its finalist scored.
-
-    Returns the candidates' records (``space`` is the index into ``spaces``),
-    the row of the finalist (None without ``rollout`` or without one), and
-    the messages of the spaces that could not be set up.
-    """
-    records, problems, failures = [], [], []
-    n_folds = len(folds)
-    for k, space in enumerate(spaces):
-        params = {**space, "fit_on": fit_on, "damping": damping}
-        # Degrees from the smallest, each assembled on its own: a degree whose
-        # best candidate is no better than the best below (within one standard
-        # error) ends the space's search, as the larger ones, which cost the
-        # most, would add terms the data do not need.
-        best = None
-        for degree in degrees:
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore")
-                try:
-                    problem = FoldProblems(params, Xt, folds, degree, domain)
-                except ValueError as error:  # e.g. a constant variable, or no Simpson pairs
-                    failures.append(str(error))
-                    break
-            size = problem.n_unknowns(degree)
-            if ROWS_PER_UNKNOWN * size > problem.n_rows * (n_folds - 1) / n_folds:
-                break
-            problems.append(problem)
-            found = [_candidate(problem, degree, threshold, n_folds)
-                     for threshold in thresholds]
-            for record in found:
-                record.update(denoise=denoise, fit_on=fit_on, space=k, size=size,
-                              problem=len(problems) - 1)
-            records.extend(found)
-            errors = np.array([r["errors"] for r in found])
-            here = int(np.nanargmin(errors.mean(axis=1))) if np.isfinite(errors).any() else None
-            if here is None:
-                break
-            mean = errors[here].mean()
-            if best is not None and mean >= best[0] - best[1]:
-                break
-            best = (mean, errors[here].std() / np.sqrt(n_folds))
-    finalist = None
-    if rollout and records:
-        finalist, _ = pick_within(
-            np.array([r["errors"] for r in records]), np.array([r["n_terms"] for r in records]),
-            np.array([r["size"] for r in records]),
-        )
-    if finalist is not None:
-        record = records[finalist]
-        problem = problems[record["problem"]]
-        started = time.perf_counter()
-        for fold, test in enumerate(folds):
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore")
-                _, solution = problem.solve(record["degree"], record["threshold"], fold)
-                model = problem.fitted(record["degree"], record["threshold"], solution, fold)
-                try:
-                    record["scores"][fold] = model.score(take(Xt, test))
-                except Exception:  # a rollout that cannot be scored counts as failed
-                    record["scores"][fold] = np.nan
-        record["score_time"] = (time.perf_counter() - started) / n_folds
-    for record in records:
-        del record["problem"]
-    return records, finalist, failures
-
-
-def _candidate(problem, degree, threshold, n_folds):
-    """One candidate's record: its equation error in every fold, its terms on all the data."""
-    started = time.perf_counter()
-    errors = np.full(n_folds, np.nan)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        for fold in range(n_folds):
-            columns, solution = problem.solve(degree, threshold, fold)
-            errors[fold] = problem.equation_error(columns, solution.coef, fold)
-        _, solution = problem.solve(degree, threshold)
-    return dict(degree=degree, threshold=threshold, errors=errors,
-                n_terms=int(solution.n_kept),
-                fit_time=(time.perf_counter() - started) / (n_folds + 1),
-                scores=np.full(n_folds, np.nan), score_time=np.nan, tied=False)
-
-
-def _within(inner, outer):
-    """Whether every function of model space ``inner`` is one of ``outer`` (same variables).
-
-    A polynomial or periodic variable lies within a mixed one (the Fourier
-    terms of an angle of period ``2 pi`` are a mixed variable's), a
-    mechanical Hamiltonian within a general one, a separable one within a
-    non-separable one; other parameters must agree.
-    """
-    keys = (set(inner) | set(outer)) - {"periodic", "mixed", "momentum_degree", "separable"}
-    if any(inner.get(key) != outer.get(key) for key in keys):
-        return False
-    flags = {name: (np.asarray(space.get("periodic") or [], bool),
-                    np.asarray(space.get("mixed") or [], bool))
-             for name, space in (("inner", inner), ("outer", outer))}
-    size = max(f.size for pair in flags.values() for f in pair)
-    (p_in, m_in), (p_out, m_out) = [
-        tuple(np.resize(f, size) if f.size else np.zeros(size, bool) for f in pair)
-        for pair in flags.values()
-    ]
-    # Per variable: polynomial (neither), periodic, or mixed (both families).
-    if np.any(p_out & ~p_in) or np.any(p_in & ~p_out & ~m_out) or np.any(m_in & ~m_out):
-        return False
-    if np.any(~p_in & ~m_in & p_out):  # a polynomial variable is no angle
-        return False
-    degree_in, degree_out = inner.get("momentum_degree"), outer.get("momentum_degree")
-    if degree_out is not None and (degree_in is None or degree_in > degree_out):
-        return False
-    return bool(inner.get("separable", False) or not outer.get("separable", False))
-
-
-def _kept_spaces(records, failures, spaces):
-    """The spaces whose screened candidates tie with the best, the smallest of each nest.
-
-    A tied space is dropped when a space within it (:func:`_within`) ties
-    with as few terms: it adds only functions the data do not need. At most
-    :data:`MAX_SPACES` are kept, the smallest models first.
-    """
-    if not records:
-        raise ValueError(
-            "No model space could be set up on the screening layout." + _reason(failures))
-    errors = np.array([r["errors"] for r in records])
-    best, tied = pick_within(errors, np.array([r["n_terms"] for r in records]),
-                             np.array([r["size"] for r in records]))
-    if best is None:
-        raise ValueError(
-            "No model space could be fitted in every fold on the screening layout: give more "
-            "trajectories or lower degrees."
-        )
-    ranking = {}
-    for record, flag in zip(records, tied):
-        if flag:
-            key = (record["n_terms"], record["size"], float(np.mean(record["errors"])))
-            ranking[record["space"]] = min(ranking.get(record["space"], key), key)
-    kept = [k for k in ranking
-            if not any(j != k and _within(spaces[j], spaces[k]) and ranking[j][0] <= ranking[k][0]
-                       for j in ranking)]
-    return sorted(kept, key=ranking.get)[:MAX_SPACES]
-
-
-def _cv_results(records, spaces, n_folds, damping, domain):
-    """``cv_results_`` from the candidates' records."""
-    params = [
-        _pipeline_params(r["denoise"], r["fit_on"], spaces[r["space"]], r["degree"],
-                         r["threshold"], damping, domain)
-        for r in records
-    ]
-    results = {"params": params}
-    for name in sorted({key for p in params for key in p}):
-        column = np.ma.MaskedArray(np.empty(len(params), dtype=object), mask=True)
-        for i, p in enumerate(params):
-            if name in p:
-                column[i] = p[name]
-        results[f"param_{name}"] = column
-    scores = np.array([r["scores"] for r in records])
-    errors = np.array([r["errors"] for r in records])
-    for k in range(n_folds):
-        results[f"split{k}_test_score"] = scores[:, k]
-    finite = np.isfinite(scores).all(axis=1)
-    mean = np.where(finite, scores.mean(axis=1), np.nan)
-    results["mean_test_score"] = mean
-    results["std_test_score"] = np.where(finite, scores.std(axis=1), np.nan)
-    order = np.argsort(-np.where(finite, mean, -np.inf), kind="stable")
-    rank = np.empty(len(records), dtype=np.int32)
-    rank[order] = np.arange(1, len(records) + 1)
-    results["rank_test_score"] = rank
-    for k in range(n_folds):
-        results[f"split{k}_equation_error"] = errors[:, k]
-    results["mean_equation_error"] = errors.mean(axis=1)
-    results["std_equation_error"] = errors.std(axis=1)
-    results["mean_fit_time"] = np.array([r["fit_time"] for r in records])
-    results["mean_score_time"] = np.array([r["score_time"] for r in records])
-    results["n_terms"] = np.array([r["n_terms"] for r in records])
-    results["stage"] = np.array([r["stage"] for r in records])
-    results["tied"] = np.array([r["tied"] for r in records])
-    return results

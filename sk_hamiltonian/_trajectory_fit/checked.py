@@ -1,0 +1,197 @@
+"""A fitted regressor's kept coefficients fitted to raw trajectories, accepted only where held-out data agree.
+
+:func:`refine` is the one implementation of the trajectory fit (output error)
+behind :class:`~sk_hamiltonian.model_selection.HamiltonianSearchCV`'s last
+stage. It runs the solver (:mod:`.solver`) on the kept readable terms
+(:mod:`.terms`), over segments of the records no longer than a period of
+the model (:mod:`.segments`), and, given a way to refit the least-squares
+model on part of the data, checks the result first on data it was not
+fitted on:
+
+1. for each held-out set of trajectories, the least-squares model is
+   refitted on the others, its terms fitted to their trajectories, and
+   both are scored on the held-out trajectories: each held-out segment's
+   initial state fitted with the coefficients fixed, its misfit weighed by
+   the noise model of the training fit;
+2. the trajectory fit is accepted unless its held-out misfit, summed over
+   the held-out trajectories, exceeds the least-squares model's by more than
+   :data:`CHECK_TOLERANCE` of it; otherwise the least-squares coefficients
+   are kept, with the reason;
+3. accepted, the kept terms are fitted to all the trajectories, starting
+   from the least-squares coefficients; a fit that does not converge is not
+   used either.
+"""
+
+import numpy as np
+
+from .noise import difference_noise_model
+from .segments import (
+    SEGMENT_PERIODS,
+    group_by_times,
+    growth_rates,
+    shooting_segments,
+    split_times,
+)
+from .solver import TrajectoryFitError, fit_initial_states, fit_trajectories
+from .terms import KeptTerms
+
+# The trajectory fit is rejected when its held-out misfit exceeds the
+# least-squares fit's by more than this fraction: a fit that fails does so by
+# tens of percent or orders of magnitude, and one that ties should not lose to
+# the noise of the comparison.
+CHECK_TOLERANCE = 0.005
+
+
+def segment_duration(regressor):
+    """The longest segment the fit simulates for ``regressor``: a period of its model."""
+    scale = getattr(regressor, "time_scale_", np.nan)
+    return SEGMENT_PERIODS * 2 * np.pi * scale if np.isfinite(scale) else np.inf
+
+
+def segmented(regressor, times, states, indices=None):
+    """The trajectories ``indices`` cut for ``regressor`` (:func:`~.segments.shooting_segments`), grouped.
+
+    Returns the groups of :func:`~.segments.group_by_times` and each group's
+    owners (positions in ``indices``).
+    """
+    indices = np.arange(len(times)) if indices is None else indices
+    times, states = [times[k] for k in indices], [states[k] for k in indices]
+    rates = growth_rates(regressor._jacobian, states)
+    seg_times, seg_states, owner = shooting_segments(times, states, segment_duration(regressor),
+                                                     rates)
+    groups, members = group_by_times(seg_times, seg_states, regressor._default_step("rk4"))
+    return groups, [owner[m] for m in members]
+
+
+def _per_trajectory(values, owners, n):
+    """Sums of per-segment values over the segments of each trajectory."""
+    total = np.zeros(n)
+    for v, o in zip(values, owners):
+        np.add.at(total, o, v)
+    return total
+
+
+def refine(regressor, trajectories, dt, *, least_squares=None, held_out=None):
+    """Fit the kept coefficients of a fitted ``HamiltonianRegressor`` to raw trajectories.
+
+    Parameters
+    ----------
+    regressor : HamiltonianRegressor
+        Fitted by least squares; ``coef_``, ``support_`` and ``damping_`` are
+        updated in place when the fit is accepted.
+    trajectories : list of ndarray of shape (n_times_k, n_columns)
+        The raw trajectories the regressor was fitted on, with their time
+        stamps in the first column when ``dt`` is None.
+    dt : float or None
+        Sampling step.
+    least_squares : callable, default=None
+        ``least_squares(indices)``: the regressor's least-squares fit on the
+        trajectories ``indices`` alone (a new fitted regressor). None: no
+        held-out check.
+    held_out : list of ndarray of int, default=None
+        The held-out sets of the check; each trajectory should be in one.
+
+    Returns
+    -------
+    info : dict
+        ``status``: ``"refined"``, or ``"kept: "`` and why the least-squares
+        coefficients were kept. ``check``, when checked: ``misfit``, the
+        held-out misfits (least squares, trajectory fit) summed over the
+        held-out trajectories, and ``n_trajectories``. When refined:
+        ``n_terms``; ``n_iter`` (Levenberg-Marquardt iterations);
+        ``converged``; ``noise`` (the variance model ``(a_i, b_i)`` of each
+        variable, ``a_i + b_i x_i^2``) and ``noise_source`` (``"residuals"``:
+        fitted to the residuals; ``"data"``: estimated from the data alone,
+        where the residuals' own could not be trusted); ``rms`` (the
+        root-mean-square residual per variable); ``misfit`` (each
+        trajectory's root-mean-square residual in units of the noise model,
+        about 1 where the model explains it); ``n_segments``; ``change``
+        (the largest relative change of a kept coefficient).
+    """
+    terms = KeptTerms(regressor)
+    if terms.reason is not None:
+        return dict(status=f"kept: {terms.reason}")
+    times, states = split_times(trajectories, dt)
+    bound = difference_noise_model(states)
+    check = None
+    if least_squares is not None and held_out:
+        check = _held_out_check(least_squares, held_out, times, states, bound)
+        if check["verdict"] is not None:
+            return dict(status=f"kept: {check.pop('verdict')}", check=check)
+        check.pop("verdict")
+    groups, owners = segmented(regressor, times, states)
+    try:
+        with np.errstate(all="ignore"):
+            result = fit_trajectories(terms.model, terms.start, groups, bound=bound,
+                                      first_noise=bound)
+    except TrajectoryFitError as error:
+        return dict(status=f"kept: {error}", check=check)
+    if not np.all(np.isfinite(result["theta"])):
+        return dict(status="kept: the refined coefficients are not finite", check=check)
+    if not result["converged"]:
+        return dict(status=f"kept: the trajectory fit did not converge in {result['n_iter']} "
+                           f"iterations", check=check)
+    change = terms.apply(regressor, result["theta"])
+    n_obs = _per_trajectory([mask.sum(axis=1) * Y.shape[2] for Y, _, mask in groups], owners,
+                            len(times))
+    misfit = np.sqrt(_per_trajectory(result["misfit"], owners, len(times)) / n_obs)
+    info = dict(status="refined", n_terms=terms.n_terms, n_iter=result["n_iter"],
+                converged=result["converged"], noise=result["noise"],
+                noise_source=result["noise_source"], rms=result["rms"], misfit=misfit,
+                n_segments=sum(len(Y) for Y, _, _ in groups), change=change)
+    if check is not None:
+        info["check"] = check
+    return info
+
+
+def _held_out_check(least_squares, held_out, times, states, bound):
+    """Held-out misfits of the least-squares fit and of its trajectory fit, and the verdict.
+
+    ``verdict`` is None when the trajectory fit passes, else why it does not.
+    """
+    n = len(times)
+    chunks = []
+    for test in held_out:
+        test = np.asarray(test, dtype=np.intp)
+        if test.size == 0 or test.size == n:
+            continue
+        train = np.setdiff1d(np.arange(n), test)
+        fitted = least_squares(train)
+        terms = KeptTerms(fitted)
+        if terms.reason is not None:
+            continue  # nothing to refine on this part: both fits are the same
+        groups, _ = segmented(fitted, times, states, train)
+        try:
+            with np.errstate(all="ignore"):
+                # One fit weighted by the data's own noise model: the check
+                # asks whether fitting these terms to trajectories generalises,
+                # not for the last digits of the estimate.
+                result = fit_trajectories(terms.model, terms.start, groups, bound=bound,
+                                          n_reweights=0, first_noise=bound)
+        except TrajectoryFitError:
+            return dict(verdict="the least-squares fit cannot simulate its training "
+                                "trajectories", misfit=None, n_trajectories=0)
+        if not np.all(np.isfinite(result["theta"])):
+            return dict(verdict="the trajectory fit's coefficients are not finite",
+                        misfit=None, n_trajectories=0)
+        noise = bound
+        groups, owners = segmented(fitted, times, states, test)
+        pair = []
+        for theta in (terms.start, result["theta"]):
+            with np.errstate(all="ignore"):
+                misfit = fit_initial_states(terms.model, theta, groups, noise)
+            pair.append(_per_trajectory(misfit, owners, test.size))
+        chunks.append(np.column_stack(pair))
+    if not chunks:
+        return dict(verdict=None, misfit=None, n_trajectories=0)
+    misfit = np.concatenate(chunks)
+    totals = misfit.sum(axis=0)
+    verdict = None
+    if not np.all(np.isfinite(misfit[:, 1])):
+        verdict = "the trajectory fit's simulation of held-out trajectories fails"
+    elif np.all(np.isfinite(misfit[:, 0])) and totals[1] > (1 + CHECK_TOLERANCE) * totals[0]:
+        verdict = (f"the trajectory fit explains held-out trajectories worse than the "
+                   f"least-squares fit (weighted misfit {totals[1]:.4g} against "
+                   f"{totals[0]:.4g})")
+    return dict(verdict=verdict, misfit=tuple(float(v) for v in totals),
+                n_trajectories=len(misfit))

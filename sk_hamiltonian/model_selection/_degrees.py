@@ -1,0 +1,117 @@
+"""Stage 2 of the search: degrees and thresholds in the kept spaces, one finalist per layout and fit target.
+
+For one derivative layout and fit target, each model space is assembled once
+per degree (:class:`~._fold_problems.FoldProblems`), from the smallest: every
+threshold is a solve on the same normal equations, and a degree whose best
+candidate is no better than the best below it ends the space's search. The
+candidate with the fewest terms among those the data cannot reject against
+the lowest held-out equation error (:func:`~._selection.pick_within`) is the
+pair's *finalist*, scored by rollouts against the held-out observations.
+"""
+
+import time
+import warnings
+
+import numpy as np
+
+from ._fold_problems import FoldProblems, take
+from ._selection import EXACT_FLOOR, RELATIVE_TIE, pick_within
+
+# Training equations per unknown a candidate needs in every fold.
+ROWS_PER_UNKNOWN = 2
+
+
+def failure_reason(failures):
+    """The first failure's message, as the end of an error message."""
+    return f" The first candidate's error: {failures[0]}" if failures else ""
+
+
+def search_unit(Xt, folds, spaces, fit_on, degrees, thresholds, damping, domain, denoise,
+                rollout):
+    """Every candidate of one layout and fit target in ``spaces``; with ``rollout``, its finalist scored.
+
+    Returns the candidates' records (``space`` is the index into ``spaces``),
+    the row of the finalist (None without ``rollout`` or without one), and
+    the messages of the spaces that could not be set up. The finalist's
+    record also holds its regressor fitted on all the data (``fitted``).
+    """
+    records, problems, failures = [], [], []
+    n_folds = len(folds)
+    for k, space in enumerate(spaces):
+        params = {**space, "fit_on": fit_on, "damping": damping}
+        # Degrees from the smallest, each assembled on its own: a degree whose
+        # best candidate is no better than the best below (by more than one
+        # standard error and RELATIVE_TIE) ends the space's search, as the
+        # larger ones, which cost the most, would add terms the data do not
+        # need.
+        best = None
+        for degree in degrees:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                try:
+                    problem = FoldProblems(params, Xt, folds, degree, domain)
+                except ValueError as error:  # e.g. a constant variable, or no Simpson pairs
+                    failures.append(str(error))
+                    break
+            size = problem.n_unknowns(degree)
+            if ROWS_PER_UNKNOWN * size > problem.n_rows * (n_folds - 1) / n_folds:
+                break
+            problems.append(problem)
+            found = [candidate(problem, degree, threshold, n_folds)
+                     for threshold in thresholds]
+            for record in found:
+                record.update(denoise=denoise, fit_on=fit_on, space=k, size=size,
+                              problem=len(problems) - 1)
+            records.extend(found)
+            errors = np.array([r["errors"] for r in found])
+            here = int(np.nanargmin(errors.mean(axis=1))) if np.isfinite(errors).any() else None
+            if here is None:
+                break
+            mean = errors[here].mean()
+            if best is not None and (best[0] - mean <= max(best[1], RELATIVE_TIE * best[0])
+                                     or best[0] <= EXACT_FLOOR):
+                break
+            best = (mean, errors[here].std() / np.sqrt(n_folds))
+    finalist = None
+    if rollout and records:
+        finalist, _ = pick_within(
+            np.array([r["errors"] for r in records]), np.array([r["n_terms"] for r in records]),
+            np.array([r["size"] for r in records]),
+        )
+    if finalist is not None:
+        record = records[finalist]
+        problem = problems[record["problem"]]
+        started = time.perf_counter()
+        for fold, test in enumerate(folds):
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                _, solution = problem.solve(record["degree"], record["threshold"], fold)
+                model = problem.fitted(record["degree"], record["threshold"], solution, fold)
+                try:
+                    record["scores"][fold] = model.score(take(Xt, test))
+                except Exception:  # a rollout that cannot be scored counts as failed
+                    record["scores"][fold] = np.nan
+        record["score_time"] = (time.perf_counter() - started) / n_folds
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            _, solution = problem.solve(record["degree"], record["threshold"])
+            record["fitted"] = problem.fitted(record["degree"], record["threshold"], solution)
+    for record in records:
+        del record["problem"]
+    return records, finalist, failures
+
+
+def candidate(problem, degree, threshold, n_folds):
+    """One candidate's record: its equation error in every fold, its terms on all the data."""
+    started = time.perf_counter()
+    errors = np.full(n_folds, np.nan)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        for fold in range(n_folds):
+            columns, solution = problem.solve(degree, threshold, fold)
+            errors[fold] = problem.equation_error(columns, solution.coef, fold)
+        _, solution = problem.solve(degree, threshold)
+    return dict(degree=degree, threshold=threshold, errors=errors,
+                n_terms=int(solution.n_kept),
+                fit_time=(time.perf_counter() - started) / (n_folds + 1),
+                scores=np.full(n_folds, np.nan), score_time=np.nan, tied=False)

@@ -1,0 +1,392 @@
+"""Stage 0 of the search: the data as its folds will see them, and what was left out.
+
+Before any model sees them, the trajectories are checked for what shapes a
+law without being physics, and for what the folds need:
+
+1. **Spikes.** A sample far from its neighbours (a dropped sensor reading) is
+   left out, and its trajectory cut there into pieces (:func:`find_spikes`).
+   Each sample is compared with the cubic through its four nearest
+   neighbours, which a smooth record follows to ``O(dt**4)``; the difference,
+   in units of the noise (the scaled median absolute deviation of the
+   differences among samples of its size, so that relative noise, larger
+   where the state is larger, is measured where it is), beyond
+   :data:`SPIKE_MADS` marks a spike. A spike also disturbs its
+   neighbours' cubics: only the worst sample within two of another is
+   marked in one pass, replaced by its cubic, and the pass repeated. Pieces
+   shorter than :data:`MIN_PIECE_SAMPLES` are left out too, and a trajectory
+   with more than :data:`MAX_SPIKE_FRACTION` of its samples flagged is left
+   out whole.
+2. **Duplicates.** A trajectory equal to an earlier one adds no information,
+   only weight: it is left out.
+3. **Few long records.** With fewer than :data:`MIN_PER_FOLD` trajectories per
+   fold, the records are cut into contiguous segments, about
+   :data:`SEGMENTS_PER_FOLD` per fold, of at most :data:`MAX_SEGMENT_SAMPLES`
+   and at least :data:`MIN_SEGMENT_SAMPLES` samples, and the folds hold out
+   contiguous stretches of them (blocked cross-validation: no sample is in a
+   training and a test fold). Otherwise the folds are those of ``cv`` over
+   the user's trajectories, and the pieces of one trajectory share its fold.
+4. **Clean data.** The noise the data show by themselves (their sixth
+   differences, :func:`~sk_hamiltonian._trajectory_fit.difference_noise_model`)
+   below :data:`CLEAN_LEVEL` of every variable's spread marks them as exact.
+
+Everything left out is named, as in the user's ``X``, in an
+:class:`~sk_hamiltonian.OutlierWarning` and in the search's ``preparation_``.
+"""
+
+import numpy as np
+
+from sklearn.model_selection import GroupKFold, check_cv
+
+from .._outliers import MAD_TO_STD, listed
+from .._trajectory_fit import difference_noise_model
+from .._trajectory_fit.noise import mean_variance
+from .._warnings import warn
+from ..exceptions import OutlierWarning
+from ._cv_tools import segment_trajectories
+
+# A spike lies this many noise levels (scaled MADs) from the cubic through its neighbours ...
+SPIKE_MADS = 10.0
+# ... the noise level measured among samples of the same size (this many bins) ...
+NOISE_BINS = 10
+# ... and beyond this fraction of the variable's spread (round-off of exact data).
+SPIKE_FLOOR = 1e-6
+# Passes of the spike search (each marks the worst sample of every cluster).
+MAX_SPIKE_PASSES = 20
+# Trajectories shorter than this are not searched for spikes.
+MIN_SPIKE_SAMPLES = 6
+# A spike's difference from its cubic exceeds its neighbours' this many times.
+ISOLATION = 3.0
+# A trajectory with more than this fraction of spikes is left out whole.
+MAX_SPIKE_FRACTION = 0.2
+# Pieces between spikes shorter than this are left out: the de-noising
+# polynomials of the search need degree + 2 samples, and its largest default
+# degree is 8.
+MIN_PIECE_SAMPLES = 11
+# Trajectories each fold should hold out before long records are cut.
+MIN_PER_FOLD = 2
+# Segments per fold when records are cut, and their bounds.
+SEGMENTS_PER_FOLD = 4
+MIN_SEGMENT_SAMPLES = 21
+MAX_SEGMENT_SAMPLES = 400
+# Noise below this fraction of every variable's root-mean-square: exact data.
+CLEAN_LEVEL = 1e-5
+
+
+class Prepared:
+    """The search's data after stage 0.
+
+    Attributes
+    ----------
+    X : ndarray of shape (n, n_times, n_columns) or list of ndarray
+        What the pipelines are fitted on.
+    trajectories : list of ndarray
+        The same, one array each.
+    folds : list of ndarray of int
+        Held-out trajectories (rows of ``X``) of each fold.
+    report : dict
+        ``left_out`` (the user's trajectory index to the sample indices left
+        out of it), ``dropped`` (trajectories left out whole, with why),
+        ``duplicates`` (index to the earlier trajectory it repeats),
+        ``segments`` (None, or how records were cut), ``noise`` (the data's
+        own noise model, ``(a_i, b_i)`` per variable, or None) and ``clean``.
+    """
+
+    def __init__(self, X, trajectories, folds, report):
+        self.X, self.trajectories, self.folds, self.report = X, trajectories, folds, report
+
+
+def _neighbour_cubics(t, usable):
+    """Each sample's four nearest usable neighbours and the weights of their cubic at its time.
+
+    Two on each side where there are, else the four nearest on one side.
+    Returns ``nodes`` (n, 4) of indices and ``weights`` (n, 4): ``y[j]`` is
+    predicted by ``weights[j] @ y[nodes[j]]``; a sample is never its own node.
+    """
+    j = np.arange(len(t))
+    u = np.flatnonzero(usable)
+    left = np.searchsorted(u, j, side="left")
+    right = np.searchsorted(u, j, side="right")
+    n_other = len(u) - (right - left)  # usable samples other than j
+    start = np.clip(left - 2, 0, n_other - 4)
+    positions = start[:, None] + np.arange(4)  # in u with j removed
+    positions = np.where(positions < left[:, None], positions,
+                         positions + (right - left)[:, None])
+    nodes = u[positions]
+    tn, tj = t[nodes], t[:, None]
+    weights = np.ones(nodes.shape)
+    for a in range(4):
+        for b in range(4):
+            if a != b:
+                weights[:, a] *= (tj[:, 0] - tn[:, b]) / (tn[:, a] - tn[:, b])
+    return nodes, weights
+
+
+def _cubic_residuals(t, Y, usable):
+    """Each sample's difference from its neighbours' cubic, in units of the difference's noise.
+
+    Returns the differences and the size of each sample's neighbourhood
+    (the median magnitude of its nodes, which a spike among them does not
+    move).
+    """
+    nodes, weights = _neighbour_cubics(t, usable)
+    around = Y[nodes]
+    predicted = np.einsum("jk,jkv->jv", weights, around)
+    scale = np.sqrt(1.0 + np.sum(weights**2, axis=1))[:, None]
+    return np.abs(Y - predicted) / scale, np.median(np.abs(around), axis=1)
+
+
+def _noise_by_size(residuals, sizes):
+    """Each sample's noise level: the scaled median absolute residual among samples of its size.
+
+    Relative noise is larger where the state is larger: the samples of each
+    variable are binned by the size of their neighbourhood (quantiles,
+    :data:`NOISE_BINS` of them), and each bin has its own level.
+    """
+    noise = np.empty_like(residuals)
+    for v in range(residuals.shape[1]):
+        edges = np.quantile(sizes[:, v], np.linspace(0, 1, NOISE_BINS + 1)[1:-1])
+        bins = np.searchsorted(edges, sizes[:, v])
+        level = np.array([np.median(residuals[bins == b, v]) if np.any(bins == b) else 0.0
+                          for b in range(NOISE_BINS)])
+        noise[:, v] = MAD_TO_STD * level[bins]
+    return noise
+
+
+def find_spikes(times, states):
+    """Samples far from the cubic through their neighbours, per trajectory.
+
+    Parameters
+    ----------
+    times : list of ndarray of shape (n_times_k,)
+    states : list of ndarray of shape (n_times_k, n_states)
+
+    Returns
+    -------
+    spikes : list of ndarray of bool of shape (n_times_k,)
+        Whether any variable of the sample is a spike.
+    """
+    spikes = [np.zeros(len(Y), dtype=bool) for Y in states]
+    judged = [k for k, t in enumerate(times) if len(t) >= MIN_SPIKE_SAMPLES]
+    if not judged:
+        return spikes
+    samples = np.concatenate(states)
+    spread = MAD_TO_STD * np.median(np.abs(samples - np.median(samples, axis=0)), axis=0)
+    floor = SPIKE_FLOOR * np.where(spread > 0, spread, np.max(np.abs(samples), axis=0))
+    first = [_cubic_residuals(times[k], states[k], ~spikes[k]) for k in judged]
+    noise = _noise_by_size(np.concatenate([r for r, _ in first]),
+                           np.concatenate([size for _, size in first]))
+    noise = np.split(noise, np.cumsum([len(states[k]) for k in judged])[:-1])
+    for k, level, (residual, _) in zip(judged, noise, first):
+        t, Y, flagged = times[k], states[k], spikes[k]
+        limit = SPIKE_MADS * level + floor
+        for _ in range(MAX_SPIKE_PASSES):
+            score = np.max(residual / limit, axis=1)
+            score[flagged] = 0.0
+            suspect = score > 1.0
+            # The worst isolated suspect of each cluster (a spike disturbs its
+            # neighbours' cubics too, and at the ends by more than itself).
+            new = []
+            for j in np.flatnonzero(suspect)[np.argsort(-score[suspect], kind="stable")]:
+                if all(abs(j - i) > 2 for i in new) and _is_spike(t, Y, flagged, j, limit,
+                                                                  suspect):
+                    new.append(j)
+            if not new or np.sum(~flagged) - len(new) < MIN_SPIKE_SAMPLES:
+                break
+            flagged[new] = True
+            residual, _ = _cubic_residuals(t, Y, ~flagged)
+        for j in np.flatnonzero(flagged):
+            flagged[j] = False
+            flagged[j] = _is_spike(t, Y, flagged, j, limit)
+    return spikes
+
+
+def _is_spike(t, Y, flagged, j, limit, suspect=None):
+    """Whether sample ``j`` stands out from its neighbours, none of them a spike or a suspect.
+
+    Its own difference from its cubic must exceed ``limit`` and
+    :data:`ISOLATION` times those of its four nodes, whose cubics leave out
+    ``j``, the marked samples and the other ``suspect`` ones (samples beyond
+    the limit, which may be spikes too). On an exact record the cubics'
+    truncation error is smooth, as large at the neighbours as at ``j``; a
+    spike stands above them.
+    """
+    usable = ~flagged if suspect is None else ~(flagged | suspect)
+    usable[j] = False
+    residual, _ = _cubic_residuals(t, Y, usable)
+    nodes, _ = _neighbour_cubics(t, usable | (np.arange(len(t)) == j))
+    neighbours = residual[nodes[j]].max(axis=0)
+    return bool(np.any((residual[j] > limit[j]) & (residual[j] > ISOLATION * neighbours)))
+
+
+def _pieces(flags):
+    """Runs of unflagged samples, as (start, stop) pairs."""
+    edges = np.flatnonzero(np.diff(np.concatenate([[True], flags, [True]]).astype(int)))
+    return list(zip(edges[::2], edges[1::2]))
+
+
+def prepare(trajectories, dt, cv, groups):
+    """Stage 0: spikes and duplicates left out, long records segmented, the folds.
+
+    Parameters
+    ----------
+    trajectories : list of ndarray
+        The user's trajectories, checked (time stamps first when ``dt`` is None).
+    dt : float or None
+    cv : int, cross-validation generator or iterable
+    groups : array-like or None
+        Group labels of the user's trajectories.
+
+    Returns
+    -------
+    prepared : Prepared
+
+    Raises
+    ------
+    ValueError
+        If the data are too few for the folds even cut into segments.
+    """
+    offset = 1 if dt is None else 0
+    states = [T[:, offset:] for T in trajectories]
+    report = dict(left_out={}, dropped={}, duplicates={}, segments=None, noise=None,
+                  clean=False)
+    pieces, owners = _without_spikes(trajectories, states, report)
+    pieces, owners = _without_duplicates(pieces, owners, report)
+    if not pieces:
+        raise ValueError(
+            "No trajectory is left once spikes and duplicates are left out "
+            f"({_left_out_words(report)}): the data cannot be fitted. Inspect X.")
+    _warn_left_out(report, len(trajectories))
+    n_splits = _n_splits(cv)
+    if np.unique(owners).size >= MIN_PER_FOLD * n_splits:
+        folds = _trajectory_folds(cv, len(trajectories), owners, groups)
+    else:
+        pieces, folds = _segmented(pieces, owners, n_splits, cv, report)
+        owners = None
+    noise = difference_noise_model([P[:, offset:] for P in pieces])
+    report["noise"] = noise
+    if noise is not None:
+        samples = np.concatenate([P[:, offset:] for P in pieces])
+        rms = np.sqrt(np.mean(samples**2, axis=0))
+        level = np.sqrt(mean_variance(noise, samples))
+        report["clean"] = bool(np.all(level <= CLEAN_LEVEL * np.where(rms > 0, rms, 1.0)))
+    X = np.stack(pieces) if len({len(P) for P in pieces}) == 1 else pieces
+    return Prepared(X, pieces, folds, report)
+
+
+def _without_spikes(trajectories, states, report):
+    """Pieces of the trajectories between spikes, and the trajectory each comes from."""
+    offset = trajectories[0].shape[1] - states[0].shape[1]
+    times = [T[:, 0] if offset else np.arange(len(T), dtype=float) for T in trajectories]
+    flags = find_spikes(times, states)
+    pieces, owners = [], []
+    for k, (T, flagged) in enumerate(zip(trajectories, flags)):
+        if not flagged.any():
+            pieces.append(T)
+            owners.append(k)
+            continue
+        if flagged.mean() > MAX_SPIKE_FRACTION:
+            report["dropped"][k] = f"{flagged.sum()} of its {len(T)} samples are spikes"
+            continue
+        left = list(np.flatnonzero(flagged))
+        for start, stop in _pieces(flagged):
+            if stop - start >= MIN_PIECE_SAMPLES:
+                pieces.append(T[start:stop])
+                owners.append(k)
+            else:
+                left.extend(range(start, stop))
+        report["left_out"][k] = sorted(int(j) for j in left)
+    return pieces, np.array(owners, dtype=np.intp)
+
+
+def _without_duplicates(pieces, owners, report):
+    """The pieces with every repeat of an earlier whole trajectory left out."""
+    seen, keep = {}, []
+    for i, (P, k) in enumerate(zip(pieces, owners)):
+        key = (P.shape, P.tobytes())
+        if key in seen and owners[seen[key]] != k:
+            report["duplicates"][int(k)] = int(owners[seen[key]])
+            continue
+        seen.setdefault(key, i)
+        keep.append(i)
+    return [pieces[i] for i in keep], owners[keep]
+
+
+def _left_out_words(report):
+    parts = []
+    if report["left_out"]:
+        n = sum(len(v) for v in report["left_out"].values())
+        parts.append(f"{n} samples of trajectories {listed(sorted(report['left_out']))} as spikes")
+    if report["dropped"]:
+        parts.append(f"trajectories {listed(sorted(report['dropped']))} whole, mostly spikes")
+    if report["duplicates"]:
+        parts.append(f"trajectories {listed(sorted(report['duplicates']))}, repeats of earlier "
+                     f"ones")
+    return "; ".join(parts)
+
+
+def _warn_left_out(report, n_trajectories):
+    words = _left_out_words(report)
+    if not words:
+        return
+    named = sorted(set(report["left_out"]) | set(report["dropped"]) | set(report["duplicates"]))
+    warn(
+        OutlierWarning(
+            f"HamiltonianSearchCV: of {n_trajectories} trajectories (numbered as in X), left "
+            f"out {words}. Spikes are samples far from their neighbours (dropped readings); "
+            f"each trajectory is cut at them and the pieces fitted. The search's "
+            f"preparation_ lists every sample left out.",
+            trajectories=named,
+        ),
+        OutlierWarning,
+    )
+
+
+def _n_splits(cv):
+    splitter = check_cv(cv)
+    try:
+        return int(splitter.get_n_splits())
+    except TypeError:  # splitters that need the data to count: at most this many
+        return 2
+
+
+def _trajectory_folds(cv, n_trajectories, owners, groups):
+    """The folds of ``cv`` over the user's trajectories, each piece in its trajectory's fold.
+
+    Trajectories left out whole are in no fold; a fold left empty by them is
+    dropped.
+    """
+    splitter = check_cv(cv)
+    folds = []
+    for _, test in splitter.split(np.zeros((n_trajectories, 1)), groups=groups):
+        fold = np.flatnonzero(np.isin(owners, test))
+        if fold.size:
+            folds.append(fold)
+    return folds
+
+
+def _segmented(pieces, owners, n_splits, cv, report):
+    """Few long records: contiguous segments, and blocked folds of them."""
+    total = sum(len(P) for P in pieces)
+    length = min(MAX_SEGMENT_SAMPLES, total // (SEGMENTS_PER_FOLD * n_splits))
+    n_records = np.unique(owners).size
+    if length < MIN_SEGMENT_SAMPLES:
+        raise ValueError(
+            f"Too few data for {n_splits} folds: {n_records} trajectories of {total} samples "
+            f"in all. The search holds out whole trajectories, at least {MIN_PER_FOLD} per "
+            f"fold ({MIN_PER_FOLD * n_splits} in all), or cuts longer records into "
+            f"{SEGMENTS_PER_FOLD} segments of at least {MIN_SEGMENT_SAMPLES} samples per fold "
+            f"({SEGMENTS_PER_FOLD * n_splits * MIN_SEGMENT_SAMPLES} samples in all). Give "
+            f"more or longer trajectories, or fewer folds (cv)."
+        )
+    segments, blocks = segment_trajectories(list(pieces), int(length), n_groups=n_splits)
+    segments = list(segments)
+    splitter = GroupKFold(n_splits) if isinstance(cv, (int, np.integer)) else check_cv(cv)
+    folds = [test for _, test in splitter.split(np.zeros((len(segments), 1)), groups=blocks)]
+    report["segments"] = dict(
+        n_records=int(n_records), length=int(length), n_segments=len(segments),
+        rule=(f"{n_records} records cannot fill {n_splits} folds with {MIN_PER_FOLD} each: "
+              f"cut into {len(segments)} contiguous segments of {length} samples "
+              f"(the last of a record up to {2 * length - 1}), each fold holding out a "
+              f"contiguous stretch of them"),
+    )
+    return segments, folds
