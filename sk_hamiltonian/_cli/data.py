@@ -7,8 +7,11 @@ cross-validation.
 
 import numpy as np
 
+from .._outliers import listed
+from .._trajectories import check_trajectories
 from ..datasets import PAPER_DT, make_trajectories, single_pendulum
 from ..model_selection import segment_trajectories
+from ..model_selection._prepare import prepare
 from .datafiles import load_trajectories
 from .errors import UsageError, check_positive
 from .words import counted
@@ -29,13 +32,16 @@ class Data:
     ``X`` is what the pipeline gets (time stamps as first column when
     ``stamped``); ``times`` and ``states`` are the same trajectories split;
     ``dt`` is the transformer's step (None with time stamps), ``step`` the
-    (median) sampling step; ``groups`` the CV groups of segments (or None).
+    (median) sampling step; ``groups`` the CV groups of segments (or None);
+    ``folds`` the held-out rows of each fold of the default search, once the
+    data are prepared for it (:meth:`use_prepared`).
     """
 
     def __init__(self, X, names, ids, stamped, dt, title, system=None, horizon=None):
         self.X, self.names, self.ids, self.stamped = X, names, ids, stamped
         self.dt, self.title, self.system = dt, title, system
-        self.groups = None
+        self.groups = self.folds = None
+        self.segmented = False
         self._split(horizon)
 
     def _split(self, horizon=None):
@@ -52,6 +58,18 @@ class Data:
 
     def use_segments(self, segments, ids, groups):
         self.X, self.ids, self.groups = segments, ids, groups
+        self._split()
+
+    def use_prepared(self, prepared):
+        """The search's data (:func:`~sk_hamiltonian.model_selection._prepare.prepare`) and its folds."""
+        ids = []
+        for k, start, stop in prepared.origin:
+            whole = start == 0 and stop == len(self.times[k])
+            ids.append(self.ids[k] if whole else f"{self.ids[k]}, samples {start}-{stop - 1}")
+        self.X, self.ids = prepared.X, ids
+        self.folds = prepared.folds
+        self.segmented = prepared.report["segments"] is not None
+        self.groups = None
         self._split()
 
 
@@ -151,4 +169,45 @@ def segment_if_needed(args, data):
         + (f" (the last of a record up to {longest})" if longest > length else "")
         + "; blocked cross-validation, each fold holds out a contiguous stretch of segments"
     )
+    return data
+
+
+def prepare_for_search(args, data):
+    """The default search's own preparation of the data, said in the command's words.
+
+    Spikes and repeated trajectories are left out, a few long records cut
+    into segments, exactly as :class:`~sk_hamiltonian.model_selection.HamiltonianSearchCV`
+    does with ``cv=--cv``; ``data`` then holds the prepared trajectories and
+    their folds, so that the command's search, resampling and refinement see
+    what a Python user's search sees.
+    """
+    trajectories, _ = check_trajectories(data.X, min_times=MIN_SAMPLES)
+    try:
+        prepared = prepare(trajectories, data.dt, args.cv, None)
+    except ValueError as error:
+        raise UsageError(" ".join(str(error).split()).replace("cv)", "--cv)")) from None
+    report = prepared.report
+
+    def named(indices):
+        names = [data.ids[k] for k in sorted(indices)]
+        return ", ".join(names[:10]) + (f" and {len(names) - 10} more" if len(names) > 10 else "")
+
+    if report["left_out"]:
+        n = sum(len(v) for v in report["left_out"].values())
+        print(f"note: left out {counted(n, 'sample')} of {counted(len(report['left_out']), 'trajectory', 'trajectories')} "
+              f"as spikes (far from their neighbours), each trajectory cut there: "
+              f"{named(report['left_out'])}")
+    if report["dropped"]:
+        print(f"note: left out {counted(len(report['dropped']), 'trajectory', 'trajectories')} "
+              f"made mostly of spikes: {named(report['dropped'])}")
+    if report["duplicates"]:
+        pairs = [f"{data.ids[k]} (= {data.ids[j]})" for k, j in sorted(report["duplicates"].items())]
+        print(f"note: left out {counted(len(pairs), 'repeated trajectory', 'repeated trajectories')}: "
+              f"{', '.join(pairs[:10])}" + (f" and {len(pairs) - 10} more" if len(pairs) > 10 else ""))
+    if report["segments"] is not None:
+        print(f"note: {report['segments']['rule']} (blocked cross-validation)")
+    if report["clean"]:
+        print("note: the data look exact (noise below 0.001% of every variable): finite "
+              "differences, Simpson's pairs and the weak form only")
+    data.use_prepared(prepared)
     return data

@@ -14,7 +14,7 @@ from .._vector_field import VectorFieldRegressor
 from ..exceptions import DomainWarning
 from ..inspection import format_hamiltonian
 from ..io import save
-from .data import load_data, segment_if_needed
+from .data import load_data, prepare_for_search, segment_if_needed
 from .errors import UsageError, check_positive
 from .figure import draw_report
 from .parser import MODEL_FILE, check_options
@@ -29,7 +29,10 @@ def run(args):
     """Fit, report, and write the model file (and the figure); returns the exit status."""
     data = load_data(args)
     check_options(args)
-    data = segment_if_needed(args, data)
+    if args.paper_grid or args.segment_length is not None:
+        data = segment_if_needed(args, data)
+    else:
+        data = prepare_for_search(args, data)
     horizon = args.horizon if args.horizon is not None else data.horizon
     check_positive("--horizon", horizon)
     # Before the search: a horizon beyond the simulation limits fails at once.

@@ -182,7 +182,16 @@ def _shared_failure(n_fits, message, reason, names):
 
 
 def cv_folds(args, data):
-    """The folds of the search and their words: whole trajectories, or blocked segments."""
+    """The folds of the search and their words: whole trajectories, or blocked segments.
+
+    Data prepared for the default search carry its folds (those of
+    ``HamiltonianSearchCV(cv=--cv)``); the paper's grid shuffles whole
+    trajectories with ``--seed``.
+    """
+    n = len(data.X)
+    if data.folds is not None:
+        folds = [(np.setdiff1d(np.arange(n), test), test) for test in data.folds]
+        return folds, "contiguous segments" if data.segmented else "whole trajectories"
     if data.groups is None:
         return KFold(args.cv, shuffle=True, random_state=args.seed), "whole trajectories"
     return GroupKFold(args.cv), "contiguous segments"

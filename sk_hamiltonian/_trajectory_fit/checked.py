@@ -119,8 +119,8 @@ def refine(regressor, trajectories, dt, *, least_squares=None, held_out=None):
         if check["verdict"] is not None:
             return dict(status=f"kept: {check.pop('verdict')}", check=check)
         check.pop("verdict")
-    groups, owners = segmented(regressor, times, states)
     try:
+        groups, owners = segmented(regressor, times, states)
         with np.errstate(all="ignore"):
             result = fit_trajectories(terms.model, terms.start, groups, bound=bound,
                                       first_noise=bound)
@@ -160,22 +160,24 @@ def _held_out_check(least_squares, held_out, times, states, bound):
         terms = KeptTerms(fitted)
         if terms.reason is not None:
             continue  # nothing to refine on this part: both fits are the same
-        groups, _ = segmented(fitted, times, states, train)
         try:
+            groups, _ = segmented(fitted, times, states, train)
             with np.errstate(all="ignore"):
                 # One fit weighted by the data's own noise model: the check
                 # asks whether fitting these terms to trajectories generalises,
                 # not for the last digits of the estimate.
                 result = fit_trajectories(terms.model, terms.start, groups, bound=bound,
                                           n_reweights=0, first_noise=bound)
-        except TrajectoryFitError:
-            return dict(verdict="the least-squares fit cannot simulate its training "
-                                "trajectories", misfit=None, n_trajectories=0)
+        except TrajectoryFitError as error:
+            return dict(verdict=f"on part of the data, {error}", misfit=None, n_trajectories=0)
         if not np.all(np.isfinite(result["theta"])):
             return dict(verdict="the trajectory fit's coefficients are not finite",
                         misfit=None, n_trajectories=0)
         noise = bound
-        groups, owners = segmented(fitted, times, states, test)
+        try:
+            groups, owners = segmented(fitted, times, states, test)
+        except TrajectoryFitError as error:
+            return dict(verdict=str(error), misfit=None, n_trajectories=0)
         pair = []
         for theta in (terms.start, result["theta"]):
             with np.errstate(all="ignore"):

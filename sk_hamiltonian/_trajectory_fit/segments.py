@@ -27,6 +27,8 @@ import math
 
 import numpy as np
 
+from .solver import TrajectoryFitError
+
 # A segment spans at most this many periods (2 pi time_scale) of the model ...
 SEGMENT_PERIODS = 0.5
 # ... and ends before the model's instability grows an error of its initial
@@ -38,6 +40,10 @@ MIN_SEGMENT_SAMPLES = 11
 # Segments integrated side by side have at least this fraction of the samples
 # of the longest among them (the others are padded: their work is wasted).
 PADDED_FRACTION = 0.7
+# A model that needs more RK4 steps than this between two samples is too
+# stiff for its trajectories to be fitted (its time scale is far below the
+# data's: degenerate data, or a fit that went wrong).
+MAX_SUBSTEPS = 200
 
 
 def split_times(trajectories, dt):
@@ -191,6 +197,10 @@ def _padded_group(times, states, n_times, max_step):
     steps = []
     for h in intervals.T:
         count = max(1, math.ceil(np.max(h) / max_step - 1e-9))
+        if count > MAX_SUBSTEPS:
+            raise TrajectoryFitError(
+                f"the model needs {count} integration steps between two samples (its time "
+                f"scale is far below the data's sampling)")
         steps.append(np.repeat((h / count)[np.newaxis], count, axis=0) if len(h) > 1
                      else np.full(count, h[0] / count))
     return Y, steps, mask

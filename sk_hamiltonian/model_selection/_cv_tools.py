@@ -356,6 +356,14 @@ def multistep_scorer(n_steps=5, *, stride=1):
     return scorer
 
 
+def segment_starts(n_times, segment_length, tail="merge"):
+    """First samples of the segments :func:`segment_trajectories` cuts a trajectory into."""
+    starts = list(range(0, n_times, segment_length))
+    if tail == "merge" and len(starts) > 1 and n_times - starts[-1] < segment_length:
+        starts.pop()
+    return starts
+
+
 def segment_trajectories(X, segment_length, *, n_groups=None, tail="merge"):
     """Cut trajectories into contiguous segments, with group labels for blocked CV.
 
@@ -443,11 +451,7 @@ def segment_trajectories(X, segment_length, *, n_groups=None, tail="merge"):
     trajectories, is_array = check_trajectories(X)
     segments = []
     for T in trajectories:
-        n_times = T.shape[0]
-        starts = list(range(0, n_times, segment_length))
-        if tail == "merge" and len(starts) > 1 and n_times - starts[-1] < segment_length:
-            starts.pop()
-        segments.extend(np.split(T, starts[1:]))
+        segments.extend(np.split(T, segment_starts(T.shape[0], segment_length, tail)[1:]))
     n_segments = len(segments)
     if n_groups is None:
         groups = np.arange(n_segments)

@@ -123,7 +123,10 @@ def judge_supports(models, trajectories, dt, noise):
     terms = [KeptTerms(model) for model in models]
     # One segmentation for every model (the first's: the rollout scores'
     # choice), so that their fits differ only by their terms.
-    groups, _ = segmented(models[0], times, states)
+    try:
+        groups, _ = segmented(models[0], times, states)
+    except TrajectoryFitError:
+        return dict(bic=None, rss=None, n_terms=None, n_observations=0, best=None)
     n_obs = sum(int(mask.sum()) * Y.shape[2] for Y, _, mask in groups)
     n_initial = sum(Y.shape[0] * Y.shape[2] for Y, _, _ in groups)
     rss = np.full(len(models), np.inf)

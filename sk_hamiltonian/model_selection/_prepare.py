@@ -42,7 +42,7 @@ from .._trajectory_fit import difference_noise_model
 from .._trajectory_fit.noise import mean_variance
 from .._warnings import warn
 from ..exceptions import OutlierWarning
-from ._cv_tools import segment_trajectories
+from ._cv_tools import segment_starts
 
 # A spike lies this many noise levels (scaled MADs) from the cubic through its neighbours ...
 SPIKE_MADS = 10.0
@@ -83,6 +83,9 @@ class Prepared:
         The same, one array each.
     folds : list of ndarray of int
         Held-out trajectories (rows of ``X``) of each fold.
+    origin : ndarray of int of shape (n, 3)
+        Where each row of ``X`` comes from: the user's trajectory, its first
+        sample and its stop (exclusive).
     report : dict
         ``left_out`` (the user's trajectory index to the sample indices left
         out of it), ``dropped`` (trajectories left out whole, with why),
@@ -91,8 +94,9 @@ class Prepared:
         own noise model, ``(a_i, b_i)`` per variable, or None) and ``clean``.
     """
 
-    def __init__(self, X, trajectories, folds, report):
+    def __init__(self, X, trajectories, folds, origin, report):
         self.X, self.trajectories, self.folds, self.report = X, trajectories, folds, report
+        self.origin = origin
 
 
 def _neighbour_cubics(t, usable):
@@ -249,19 +253,18 @@ def prepare(trajectories, dt, cv, groups):
     states = [T[:, offset:] for T in trajectories]
     report = dict(left_out={}, dropped={}, duplicates={}, segments=None, noise=None,
                   clean=False)
-    pieces, owners = _without_spikes(trajectories, states, report)
-    pieces, owners = _without_duplicates(pieces, owners, report)
+    pieces, origin = _without_spikes(trajectories, states, report)
+    pieces, origin = _without_duplicates(pieces, origin, report)
     if not pieces:
         raise ValueError(
             "No trajectory is left once spikes and duplicates are left out "
             f"({_left_out_words(report)}): the data cannot be fitted. Inspect X.")
     _warn_left_out(report, len(trajectories))
     n_splits = _n_splits(cv)
-    if np.unique(owners).size >= MIN_PER_FOLD * n_splits:
-        folds = _trajectory_folds(cv, len(trajectories), owners, groups)
+    if np.unique(origin[:, 0]).size >= MIN_PER_FOLD * n_splits:
+        folds = _trajectory_folds(cv, len(trajectories), origin[:, 0], groups)
     else:
-        pieces, folds = _segmented(pieces, owners, n_splits, cv, report)
-        owners = None
+        pieces, origin, folds = _segmented(pieces, origin, n_splits, cv, report)
     noise = difference_noise_model([P[:, offset:] for P in pieces])
     report["noise"] = noise
     if noise is not None:
@@ -270,19 +273,19 @@ def prepare(trajectories, dt, cv, groups):
         level = np.sqrt(mean_variance(noise, samples))
         report["clean"] = bool(np.all(level <= CLEAN_LEVEL * np.where(rms > 0, rms, 1.0)))
     X = np.stack(pieces) if len({len(P) for P in pieces}) == 1 else pieces
-    return Prepared(X, pieces, folds, report)
+    return Prepared(X, pieces, folds, origin, report)
 
 
 def _without_spikes(trajectories, states, report):
-    """Pieces of the trajectories between spikes, and the trajectory each comes from."""
+    """Pieces of the trajectories between spikes, and where each comes from (``origin``)."""
     offset = trajectories[0].shape[1] - states[0].shape[1]
     times = [T[:, 0] if offset else np.arange(len(T), dtype=float) for T in trajectories]
     flags = find_spikes(times, states)
-    pieces, owners = [], []
+    pieces, origin = [], []
     for k, (T, flagged) in enumerate(zip(trajectories, flags)):
         if not flagged.any():
             pieces.append(T)
-            owners.append(k)
+            origin.append((k, 0, len(T)))
             continue
         if flagged.mean() > MAX_SPIKE_FRACTION:
             report["dropped"][k] = f"{flagged.sum()} of its {len(T)} samples are spikes"
@@ -291,24 +294,25 @@ def _without_spikes(trajectories, states, report):
         for start, stop in _pieces(flagged):
             if stop - start >= MIN_PIECE_SAMPLES:
                 pieces.append(T[start:stop])
-                owners.append(k)
+                origin.append((k, start, stop))
             else:
                 left.extend(range(start, stop))
         report["left_out"][k] = sorted(int(j) for j in left)
-    return pieces, np.array(owners, dtype=np.intp)
+    return pieces, np.array(origin, dtype=np.intp).reshape(-1, 3)
 
 
-def _without_duplicates(pieces, owners, report):
+def _without_duplicates(pieces, origin, report):
     """The pieces with every repeat of an earlier whole trajectory left out."""
     seen, keep = {}, []
-    for i, (P, k) in enumerate(zip(pieces, owners)):
+    for i, P in enumerate(pieces):
         key = (P.shape, P.tobytes())
-        if key in seen and owners[seen[key]] != k:
-            report["duplicates"][int(k)] = int(owners[seen[key]])
+        k = origin[i, 0]
+        if key in seen and origin[seen[key], 0] != k:
+            report["duplicates"][int(k)] = int(origin[seen[key], 0])
             continue
         seen.setdefault(key, i)
         keep.append(i)
-    return [pieces[i] for i in keep], owners[keep]
+    return [pieces[i] for i in keep], origin[keep]
 
 
 def _left_out_words(report):
@@ -364,11 +368,11 @@ def _trajectory_folds(cv, n_trajectories, owners, groups):
     return folds
 
 
-def _segmented(pieces, owners, n_splits, cv, report):
-    """Few long records: contiguous segments, and blocked folds of them."""
+def _segmented(pieces, origin, n_splits, cv, report):
+    """Few long records: contiguous segments, where each comes from, and blocked folds of them."""
     total = sum(len(P) for P in pieces)
     length = min(MAX_SEGMENT_SAMPLES, total // (SEGMENTS_PER_FOLD * n_splits))
-    n_records = np.unique(owners).size
+    n_records = np.unique(origin[:, 0]).size
     if length < MIN_SEGMENT_SAMPLES:
         raise ValueError(
             f"Too few data for {n_splits} folds: {n_records} trajectories of {total} samples "
@@ -378,8 +382,14 @@ def _segmented(pieces, owners, n_splits, cv, report):
             f"({SEGMENTS_PER_FOLD * n_splits * MIN_SEGMENT_SAMPLES} samples in all). Give "
             f"more or longer trajectories, or fewer folds (cv)."
         )
-    segments, blocks = segment_trajectories(list(pieces), int(length), n_groups=n_splits)
-    segments = list(segments)
+    segments, where = [], []
+    for P, (k, first, _) in zip(pieces, origin):
+        starts = segment_starts(len(P), int(length))
+        for start, stop in zip(starts, starts[1:] + [len(P)]):
+            segments.append(P[start:stop])
+            where.append((k, first + start, first + stop))
+    blocks = np.concatenate([np.full(run.size, g) for g, run in
+                             enumerate(np.array_split(np.arange(len(segments)), n_splits))])
     splitter = GroupKFold(n_splits) if isinstance(cv, (int, np.integer)) else check_cv(cv)
     folds = [test for _, test in splitter.split(np.zeros((len(segments), 1)), groups=blocks)]
     report["segments"] = dict(
@@ -389,4 +399,4 @@ def _segmented(pieces, owners, n_splits, cv, report):
               f"(the last of a record up to {2 * length - 1}), each fold holding out a "
               f"contiguous stretch of them"),
     )
-    return segments, folds
+    return segments, np.array(where, dtype=np.intp), folds
