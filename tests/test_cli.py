@@ -287,9 +287,10 @@ def test_error_bad_options(tmp_path, capsys, pendulum_data):
     assert "neither an integer nor 'fd'" in error_of(
         [str(path), "--dt", "0.02", "--denoise-degrees", "x"], capsys
     )
-    # 40 trajectories x 31 samples: not even 3-sample segments fill 1000 folds.
+    # 40 trajectories x 31 samples: too few to hold out 2 per fold, or to cut
+    # into 4 segments of 21 samples per fold.
     line = error_of([str(path), "--dt", "0.02", "--cv", "1000"], capsys)
-    assert "cannot fill 1000 folds, even cut into segments" in line
+    assert "Too few data for 1000 folds" in line and "fewer folds (--cv)" in line
 
 
 def test_help_documents_the_options(capsys):

@@ -113,6 +113,8 @@ def refine(regressor, trajectories, dt, *, least_squares=None, held_out=None):
         return dict(status=f"kept: {terms.reason}")
     times, states = split_times(trajectories, dt)
     bound = difference_noise_model(states)
+    if bound is None:
+        return dict(status="kept: no trajectory has the 3 samples a noise estimate needs")
     check = None
     if least_squares is not None and held_out:
         check = _held_out_check(least_squares, held_out, times, states, bound)

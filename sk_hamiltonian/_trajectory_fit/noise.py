@@ -54,13 +54,18 @@ def difference_noise_model(states, order=DIFFERENCE_ORDER):
         Observed trajectories (states only); those with at most ``order``
         samples are skipped.
     order : int, default=6
-        Order of the differences.
+        Order of the differences; lowered (down to 2) when no trajectory has
+        more samples than it.
 
     Returns
     -------
     noise : ndarray of shape (n_states, 2) or None
-        ``(a_i, b_i)`` per variable; None if no trajectory is long enough.
+        ``(a_i, b_i)`` per variable; None if no trajectory has 3 samples.
     """
+    longest = max(len(Y) for Y in states)
+    order = min(order, longest - 1)
+    if order < 2:
+        return None
     c = np.array([(-1) ** k * comb(order, k) for k in range(order + 1)])
     differences, regressors = [], []
     for Y in states:

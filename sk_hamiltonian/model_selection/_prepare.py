@@ -139,6 +139,30 @@ def _cubic_residuals(t, Y, usable):
     return np.abs(Y - predicted) / scale, np.median(np.abs(around), axis=1)
 
 
+def _first_residuals(times, states):
+    """:func:`_cubic_residuals` of every trajectory with every sample usable.
+
+    Trajectories sampled at the same times share their cubics' weights: they
+    are computed once and applied to all of them together.
+    """
+    out = [None] * len(times)
+    shared = {}
+    for k, t in enumerate(times):
+        shared.setdefault((len(t), np.asarray(t - t[0]).tobytes()), []).append(k)
+    for members in shared.values():
+        t = times[members[0]]
+        nodes, weights = _neighbour_cubics(t, np.ones(len(t), dtype=bool))
+        Y = np.stack([states[k] for k in members])
+        around = Y[:, nodes]  # (n_members, n_times, 4, n_states)
+        predicted = np.einsum("jk,mjkv->mjv", weights, around)
+        scale = np.sqrt(1.0 + np.sum(weights**2, axis=1))[None, :, None]
+        residual = np.abs(Y - predicted) / scale
+        size = np.median(np.abs(around), axis=2)
+        for i, k in enumerate(members):
+            out[k] = (residual[i], size[i])
+    return out
+
+
 def _noise_by_size(residuals, sizes):
     """Each sample's noise level: the scaled median absolute residual among samples of its size.
 
@@ -176,13 +200,15 @@ def find_spikes(times, states):
     samples = np.concatenate(states)
     spread = MAD_TO_STD * np.median(np.abs(samples - np.median(samples, axis=0)), axis=0)
     floor = SPIKE_FLOOR * np.where(spread > 0, spread, np.max(np.abs(samples), axis=0))
-    first = [_cubic_residuals(times[k], states[k], ~spikes[k]) for k in judged]
+    first = _first_residuals([times[k] for k in judged], [states[k] for k in judged])
     noise = _noise_by_size(np.concatenate([r for r, _ in first]),
                            np.concatenate([size for _, size in first]))
     noise = np.split(noise, np.cumsum([len(states[k]) for k in judged])[:-1])
     for k, level, (residual, _) in zip(judged, noise, first):
         t, Y, flagged = times[k], states[k], spikes[k]
         limit = SPIKE_MADS * level + floor
+        if not np.any(residual > limit):
+            continue  # most trajectories: nothing to look at twice
         for _ in range(MAX_SPIKE_PASSES):
             score = np.max(residual / limit, axis=1)
             score[flagged] = 0.0
@@ -205,20 +231,23 @@ def find_spikes(times, states):
 
 
 def _is_spike(t, Y, flagged, j, limit, suspect=None):
-    """Whether sample ``j`` stands out from its neighbours, none of them a spike or a suspect.
+    """Whether sample ``j`` stands out from its neighbours.
 
-    Its own difference from its cubic must exceed ``limit`` and
-    :data:`ISOLATION` times those of its four nodes, whose cubics leave out
-    ``j``, the marked samples and the other ``suspect`` ones (samples beyond
-    the limit, which may be spikes too). On an exact record the cubics'
-    truncation error is smooth, as large at the neighbours as at ``j``; a
-    spike stands above them.
+    Its difference from the cubic through its four nearest unmarked
+    neighbours must exceed ``limit`` and :data:`ISOLATION` times the median
+    of the neighbours' own, each taken from a cubic that leaves out ``j``,
+    the marked samples and the other ``suspect`` ones (samples beyond the
+    limit, which may be spikes too). On an exact record the cubics' truncation
+    error is smooth, as large at the neighbours as at ``j``; a spike stands
+    above them.
     """
-    usable = ~flagged if suspect is None else ~(flagged | suspect)
-    usable[j] = False
-    residual, _ = _cubic_residuals(t, Y, usable)
-    nodes, _ = _neighbour_cubics(t, usable | (np.arange(len(t)) == j))
-    neighbours = residual[nodes[j]].max(axis=0)
+    own = ~flagged
+    residual, _ = _cubic_residuals(t, Y, own)  # j is never a node of its own cubic
+    own[j] = False
+    nodes, _ = _neighbour_cubics(t, own | (np.arange(len(t)) == j))
+    others = own if suspect is None else own & ~suspect
+    around, _ = _cubic_residuals(t, Y, others)
+    neighbours = np.median(around[nodes[j]], axis=0)  # another spike among them is one of four
     return bool(np.any((residual[j] > limit[j]) & (residual[j] > ISOLATION * neighbours)))
 
 

@@ -1,0 +1,422 @@
+"""The default search on what users bring: scenes, record shapes, noise and fold splits.
+
+Every case is a scene, a record shape, a noise and a data seed; for each:
+
+``search``
+    :class:`~sk_hamiltonian.model_selection.HamiltonianSearchCV` with its
+    defaults (``dt`` aside): its terms, its error, its CPU time, and the error
+    of the same pick with ``refine=None`` (its least-squares refit on the
+    same prepared data).
+``sindy``, ``sindy-weak``
+    PySINDy 2 at its best, honestly cross-validated on the same folds
+    (``benchmarks/sindy_anchor.py``: the scene's library as an expert would
+    choose it, smoothing or weak-form windows and the threshold by
+    cross-validation on held-out trajectories, bagging), strong and weak
+    form. Records that the search cuts into segments are cut the same way
+    for PySINDy (segments of one length: the last samples of a record that do
+    not fill one are left to neither).
+
+Scenes: the paper's pendulum; an anharmonic spring ``p^2/2 + q^2/2 + q^4/4``
+(not in the package's datasets); Henon-Heiles (chaotic above a fraction of
+its escape energy); two pendula coupled by a spring, ``(p1^2 + p2^2)/2 - cos
+q1 - cos q2 + (q1 - q2)^2/4``, whose law is sparse only in the mixed space.
+
+Record shapes: ``many`` short bursts (the scene's study setting), ``few``
+records (5 x 801 samples) and ``one`` record (1 x 4001 samples), initial
+states drawn from the scene's box (Henon-Heiles' long records from states
+below 70 % of its escape energy, so that they stay bounded).
+
+Noise: ``0``, or Gaussian at 0.5, 2, 8 and 20 %: additive (``add``: standard
+deviation that fraction of each variable's root-mean-square over the clean
+record) or multiplicative (``mult``: each sample times ``1 + level * z``).
+
+The error is the study's (``search_study.py``): the median, over 10 initial
+states drawn from the box the records' initial states come from (keeping
+those whose true orbit stays bounded), of ``||x~(T) - x(T)|| / ||x(T)||`` at
+``T = 20``, angle differences the short way round.
+
+Run::
+
+    python benchmarks/robustness_study.py --table noise      # the noise sweep
+    python benchmarks/robustness_study.py --table shapes     # record shapes
+    python benchmarks/robustness_study.py --table folds      # fold splits
+    python benchmarks/robustness_study.py --table spikes     # dropped readings
+    python benchmarks/robustness_study.py --report           # tables from the saved rows
+
+Each row is saved in ``--output`` (default
+``benchmarks/results/robustness_study``) as it finishes and reused by later
+runs; ``--quick`` runs one seed of a few cases into a temporary folder.
+"""
+
+import argparse
+import math
+import os
+import pickle
+import sys
+import time
+import warnings
+from pathlib import Path
+
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
+
+import numpy as np  # noqa: E402
+from sklearn.base import clone  # noqa: E402
+from sklearn.model_selection import KFold  # noqa: E402
+from sklearn.pipeline import Pipeline  # noqa: E402
+
+from sk_hamiltonian import DerivativeTransformer, HamiltonianRegressor  # noqa: E402
+from sk_hamiltonian.datasets import (  # noqa: E402
+    HamiltonianSystem,
+    coupled_pendula,
+    henon_heiles,
+    single_pendulum,
+)
+from sk_hamiltonian.inspection import format_hamiltonian, hamiltonian_terms  # noqa: E402
+from sk_hamiltonian.model_selection import HamiltonianSearchCV  # noqa: E402
+from sk_hamiltonian.model_selection._prepare import prepare  # noqa: E402
+
+HERE = Path(__file__).resolve().parent
+T_END = 20.0
+N_FRESH = 10
+
+
+def anharmonic_spring():
+    """``H = p^2/2 + q^2/2 + q^4/4``: a hardening spring, polynomial and not in the paper."""
+
+    def hamiltonian(X):
+        X = np.asarray(X, dtype=float)
+        return X[..., 0] ** 2 / 2 + X[..., 1] ** 2 / 2 + X[..., 1] ** 4 / 4
+
+    def gradient(X):
+        X = np.asarray(X, dtype=float)
+        return np.stack([X[..., 0], X[..., 1] + X[..., 1] ** 3], axis=-1)
+
+    return HamiltonianSystem("anharmonic_spring", hamiltonian, gradient,
+                             domain=[[-1.5, 1.5], [-1.5, 1.5]], initial_state=[0.3, 1.2])
+
+
+SCENES = {
+    "pendulum": dict(system=single_pendulum, dt=0.01, many=(500, 41), angles=[1],
+                     terms={"p^2", "cos(q)"},
+                     sindy=dict(poly_degree=2, fourier=1, angles=[1])),
+    "spring": dict(system=anharmonic_spring, dt=0.05, many=(200, 41), angles=[],
+                   terms={"p^2", "q^2", "q^4"}, sindy=dict(poly_degree=3)),
+    "henon_heiles": dict(system=henon_heiles, dt=0.05, many=(300, 41), angles=[],
+                         terms={"p1^2", "p2^2", "q1^2", "q2^2", "q1^2*q2", "q2^3"},
+                         sindy=dict(poly_degree=3), long_energy=0.7 / 6),
+    "coupled_pendula": dict(system=lambda: coupled_pendula(coupling=0.5, g=1.0), dt=0.05,
+                            many=(200, 41), angles=[],
+                            terms={"p1^2", "p2^2", "cos(q1)", "cos(q2)", "q1^2", "q1*q2",
+                                   "q2^2"},
+                            sindy=dict(poly_degree=2, fourier=1, angles=[2, 3], mixed=True)),
+}
+SHAPES = {"many": None, "few": (5, 801), "one": (1, 4001)}
+NOISES = ["0", "add0.5", "add2", "add8", "add20", "mult0.5", "mult2", "mult8", "mult20"]
+METHODS = ("search", "sindy", "sindy-weak")
+TABLES = {
+    # table: (scenes, shapes, noises, seeds, methods)
+    "noise": (["pendulum", "spring"], ["many"], NOISES, range(5), METHODS),
+    "shapes": (list(SCENES), list(SHAPES), ["add2"], range(3), METHODS),
+    "coupled": (["coupled_pendula"], ["many"], ["add2", "mult2"], range(5), METHODS),
+}
+FOLD_CASES = [("spring", "0"), ("spring", "add1"), ("spring", "add3"), ("pendulum", "add8"),
+              ("henon_heiles", "add2")]
+N_SHUFFLES = 10
+
+
+def noise_of(label):
+    """``(kind, level)`` of a noise label: ``"0"``, ``"add2"``, ``"mult8"``..."""
+    if label == "0":
+        return None, 0.0
+    kind = "add" if label.startswith("add") else "mult"
+    return kind, float(label[len(kind):]) / 100
+
+
+def initial_states(cfg, system, box, n, rng, long):
+    """``n`` initial states uniform in ``box``; for long Henon-Heiles records, below an energy."""
+    limit = cfg.get("long_energy") if long else None
+    if limit is None:
+        return rng.uniform(box[:, 0], box[:, 1], size=(n, box.shape[0]))
+    found = []
+    while len(found) < n:
+        x = rng.uniform(box[:, 0], box[:, 1], size=(64, box.shape[0]))
+        found.extend(x[system.hamiltonian(x) < limit])
+    return np.array(found[:n])
+
+
+def scene_data(name, shape, noise, seed):
+    """The noisy records of one case, their step, and the truth for the error."""
+    cfg = SCENES[name]
+    system = cfg["system"]()
+    box = np.asarray(system.domain, dtype=float)
+    M, n_times = cfg["many"] if SHAPES[shape] is None else SHAPES[shape]
+    rng = np.random.default_rng(seed)
+    x0 = initial_states(cfg, system, box, M, rng, long=shape != "many")
+    clean = system.solve(x0, cfg["dt"] * np.arange(n_times), max_step=cfg["dt"] / 10)
+    kind, level = noise_of(noise)
+    X = clean
+    if kind == "add":
+        rms = np.sqrt(np.mean(clean.reshape(-1, clean.shape[-1]) ** 2, axis=0))
+        X = clean + level * rms * rng.standard_normal(clean.shape)
+    elif kind == "mult":
+        X = clean * (1 + level * rng.standard_normal(clean.shape))
+    return cfg, system, X
+
+
+def fresh_states(name, long):
+    """Fixed initial states per scene (and per record shape's box), with the truth at T."""
+    cfg = SCENES[name]
+    system = cfg["system"]()
+    box = np.asarray(system.domain, dtype=float)
+    rng = np.random.default_rng(12345)
+    x0 = initial_states(cfg, system, box, 40 * N_FRESH, rng, long)
+    t = np.linspace(0.0, T_END, 201)
+    orbit = system.solve(x0, t, max_step=1e-3, on_failure="nan")
+    centre, half = box.mean(axis=1), (box[:, 1] - box[:, 0]) / 2
+    with np.errstate(invalid="ignore"):
+        inside = np.abs(orbit - centre) <= 3 * half
+    angles = cfg["angles"]
+    inside[..., angles] = np.isfinite(orbit[..., angles])
+    keep = np.flatnonzero(np.all(inside, axis=(1, 2)))[:N_FRESH]
+    return x0[keep], orbit[keep, -1]
+
+
+def fresh_error(simulate, x0, truth, angles):
+    """Median relative state error at T over the fresh states (inf where a rollout fails)."""
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            Y = np.asarray(simulate(x0))
+    except Exception:  # noqa: BLE001 -- a model that cannot be simulated fails
+        return math.inf
+    d = Y - truth
+    if angles:
+        d[:, angles] = (d[:, angles] + np.pi) % (2 * np.pi) - np.pi
+    with np.errstate(invalid="ignore", over="ignore"):
+        e = np.linalg.norm(d, axis=1) / np.linalg.norm(truth, axis=1)
+    return float(np.median(np.where(np.isfinite(e), e, np.inf)))
+
+
+def model_error(model, name, long):
+    x0, truth = fresh_states(name, long)
+    return fresh_error(lambda x: model.simulate(x, [0.0, T_END], on_failure="nan")[:, -1],
+                       x0, truth, SCENES[name]["angles"])
+
+
+def run_search(name, shape, noise, seed, cv=5):
+    cfg, system, X = scene_data(name, shape, noise, seed)
+    start = time.process_time()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        search = HamiltonianSearchCV(dt=cfg["dt"], cv=cv).fit(X)
+    seconds = time.process_time() - start
+    model = search.best_estimator_[-1]
+    kept = {term.text for term in hamiltonian_terms(model)}
+    # The same pick without the refinement: its least-squares refit on the
+    # data as the search prepared them.
+    prepared = prepare(list(X), cfg["dt"], cv, None)
+    pipe = Pipeline([("derivativetransformer", DerivativeTransformer(dt=cfg["dt"])),
+                     ("hamiltonianregressor", HamiltonianRegressor())])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        least_squares = clone(pipe).set_params(**search.best_params_).fit(prepared.X)
+    long = shape != "many"
+    return dict(seconds=seconds, error=model_error(model, name, long),
+                error_least_squares=model_error(least_squares[-1], name, long),
+                refinement=search.refinement_["status"], n_terms=int(model.n_terms_),
+                formula=format_hamiltonian(model), exact_support=kept == cfg["terms"],
+                params=search.best_params_, judgement=search.judgement_,
+                preparation={k: v for k, v in search.preparation_.items() if k != "noise"})
+
+
+def run_sindy(name, shape, noise, seed, weak):
+    try:
+        sys.path.insert(0, str(HERE))
+        from sindy_anchor import fit_sindy_cv
+    except ImportError as error:
+        return dict(skipped=f"PySINDy anchor not importable ({error})")
+    cfg, system, X = scene_data(name, shape, noise, seed)
+    prepared = prepare(list(X), cfg["dt"], 5, None)
+    segments, folds = prepared.trajectories, prepared.folds
+    length = min(len(S) for S in segments)
+    X = np.stack([S[:length] for S in segments])
+    start = time.process_time()
+    try:
+        anchor = fit_sindy_cv(X, cfg["dt"], library=cfg["sindy"], folds=folds, weak=weak,
+                              seed=seed)
+    except Exception as error:  # noqa: BLE001 -- a failure is a result
+        return dict(seconds=time.process_time() - start, error=math.inf, n_terms=0,
+                    failure=str(error)[:200])
+    seconds = time.process_time() - start
+    t = np.linspace(0.0, T_END, int(round(T_END / cfg["dt"])) + 1)
+    x0, truth = fresh_states(name, shape != "many")
+    error = fresh_error(lambda x: anchor.simulate(x, t)[:, -1], x0, truth, cfg["angles"])
+    return dict(seconds=seconds, error=error, n_terms=int(anchor.n_terms),
+                params=getattr(anchor, "params", {}))
+
+
+def compute(key, output, make):
+    path = output / f"{'_'.join(map(str, key))}.pkl"
+    if path.exists():
+        return pickle.loads(path.read_bytes())
+    row = make()
+    path.write_bytes(pickle.dumps(row))
+    summary = {k: v for k, v in row.items()
+               if k in ("seconds", "error", "error_least_squares", "n_terms", "exact_support",
+                        "refinement", "skipped", "failure")}
+    print(f"{key}: {summary}", flush=True)
+    return row
+
+
+def case(name, shape, noise, seed, method, output):
+    key = (name, shape, noise, seed, method)
+    if method == "search":
+        return compute(key, output, lambda: run_search(name, shape, noise, seed))
+    return compute(key, output, lambda: run_sindy(name, shape, noise, seed,
+                                                  weak=method == "sindy-weak"))
+
+
+def fold_case(name, noise, split, output):
+    """The search on one dataset (seed 0, many short records) with fold split ``split``."""
+    cv = 5 if split == "default" else KFold(5, shuffle=True, random_state=int(split))
+    key = (name, "many", noise, 0, f"search-folds-{split}")
+    return compute(key, output, lambda: run_search(name, "many", noise, 0, cv=cv))
+
+
+def spikes_case(seed, spiked, output):
+    """The pendulum (500 x 41, 2 % additive noise), with 1 % of samples set to 1e6 or not."""
+    def make():
+        cfg, system, X = scene_data("pendulum", "many", "add2", seed)
+        if spiked:
+            rng = np.random.default_rng(1000 + seed)
+            X = X.copy()
+            X[rng.random(X.shape[:2]) < 0.01] = 1e6
+        start = time.process_time()
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            search = HamiltonianSearchCV(dt=cfg["dt"]).fit(X)
+        seconds = time.process_time() - start
+        model = search.best_estimator_[-1]
+        kept = {term.text for term in hamiltonian_terms(model)}
+        truth = np.flatnonzero(np.any(np.abs(X) > 1e5, axis=(1, 2))) if spiked else []
+        named = sorted(search.preparation_["left_out"]) + sorted(search.preparation_["dropped"])
+        return dict(seconds=seconds, error=model_error(model, "pendulum", False),
+                    exact_support=kept == cfg["terms"], formula=format_hamiltonian(model),
+                    named=named, spiked=[int(k) for k in truth],
+                    refinement=search.refinement_["status"])
+
+    return compute(("pendulum", "many", "add2", seed, "spikes" if spiked else "no-spikes"),
+                   output, make)
+
+
+def geometric_mean(values):
+    values = np.asarray(values, dtype=float)
+    return float(np.exp(np.mean(np.log(values)))) if len(values) and np.all(
+        np.isfinite(values)) and np.all(values > 0) else math.inf
+
+
+def _load(output, key):
+    path = output / f"{'_'.join(map(str, key))}.pkl"
+    return pickle.loads(path.read_bytes()) if path.exists() else None
+
+
+def report(output):
+    """The page's tables, from the saved rows (reStructuredText list tables)."""
+    lines = []
+    for table, (scenes, shapes, noises, seeds, methods) in TABLES.items():
+        lines.append(f"\n{table}: scene, shape, noise | seeds | exact laws | search | "
+                     f"refine=None | worst ratio to refine=None | sindy | sindy-weak | "
+                     f"search s | sindy s")
+        for name in scenes:
+            for shape in shapes:
+                for noise in noises:
+                    rows = {m: [r for s in seeds
+                                if (r := _load(output, (name, shape, noise, s, m))) is not None
+                                and "skipped" not in r] for m in methods}
+                    search = rows["search"]
+                    if not search:
+                        continue
+                    exact = sum(bool(r["exact_support"]) for r in search)
+                    worst = max(r["error"] / r["error_least_squares"] for r in search)
+                    line = [f"{name}, {shape}, {noise}", f"{len(search)}",
+                            f"{exact}/{len(search)}",
+                            f"{geometric_mean([r['error'] for r in search]):.3g}",
+                            f"{geometric_mean([r['error_least_squares'] for r in search]):.3g}",
+                            f"{worst:.3g}"]
+                    for m in ("sindy", "sindy-weak"):
+                        line.append(f"{geometric_mean([r['error'] for r in rows[m]]):.3g}"
+                                    if rows.get(m) else "-")
+                    line.append(f"{np.median([r['seconds'] for r in search]):.3g}")
+                    line.append(f"{np.median([r['seconds'] for r in rows['sindy']]):.3g}"
+                                if rows.get("sindy") else "-")
+                    lines.append(" | ".join(line))
+    lines.append("\nfolds: scene, noise | splits | exact laws | distinct laws | errors")
+    for name, noise in FOLD_CASES:
+        rows = [r for split in ["default"] + [str(k) for k in range(1, N_SHUFFLES + 1)]
+                if (r := _load(output, (name, "many", noise, 0, f"search-folds-{split}")))]
+        if rows:
+            laws = {r["formula"].split(" + const")[0].count("+") + 1 for r in rows}
+            supports = {frozenset(t.strip() for t in r["formula"].replace("H~ =", "").split("+"))
+                        for r in rows}
+            lines.append(f"{name}, {noise} | {len(rows)} | "
+                         f"{sum(bool(r['exact_support']) for r in rows)}/{len(rows)} | "
+                         f"{len(supports)} | {min(r['error'] for r in rows):.3g}-"
+                         f"{max(r['error'] for r in rows):.3g} (terms {sorted(laws)})")
+    lines.append("\nspikes: seed | exact | error with spikes | without | ratio | named = spiked")
+    for seed in range(5):
+        a = _load(output, ("pendulum", "many", "add2", seed, "spikes"))
+        b = _load(output, ("pendulum", "many", "add2", seed, "no-spikes"))
+        if a and b:
+            lines.append(f"{seed} | {a['exact_support']} | {a['error']:.3g} | {b['error']:.3g} | "
+                         f"{a['error'] / b['error']:.3g} | {a['named'] == a['spiked']}")
+    text = "\n".join(lines)
+    print(text)
+    (output / "robustness_study.txt").write_text(text + "\n")
+    return text
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--table", nargs="+", default=[],
+                        choices=list(TABLES) + ["folds", "spikes"])
+    parser.add_argument("--methods", nargs="+", default=list(METHODS), choices=METHODS)
+    parser.add_argument("--seeds", nargs="+", type=int, default=None)
+    parser.add_argument("--output", type=Path, default=HERE / "results" / "robustness_study")
+    parser.add_argument("--report", action="store_true", help="only print the saved rows")
+    parser.add_argument("--quick", action="store_true",
+                        help="one seed of two cases, into a temporary folder (a smoke test)")
+    args = parser.parse_args(argv)
+    if args.quick:
+        import tempfile
+
+        args.output = Path(tempfile.mkdtemp())
+        case("spring", "many", "add2", 0, "search", args.output)
+        fold_case("spring", "add1", "1", args.output)
+        report(args.output)
+        return
+    args.output.mkdir(parents=True, exist_ok=True)
+    if not args.report:
+        for table in args.table:
+            if table == "folds":
+                for name, noise in FOLD_CASES:
+                    for split in ["default"] + [str(k) for k in range(1, N_SHUFFLES + 1)]:
+                        fold_case(name, noise, split, args.output)
+            elif table == "spikes":
+                for seed in args.seeds or range(5):
+                    spikes_case(seed, True, args.output)
+                    spikes_case(seed, False, args.output)
+            else:
+                scenes, shapes, noises, seeds, methods = TABLES[table]
+                for name in scenes:
+                    for shape in shapes:
+                        for noise in noises:
+                            for seed in (args.seeds if args.seeds is not None else seeds):
+                                for method in methods:
+                                    if method in args.methods:
+                                        case(name, shape, noise, seed, method, args.output)
+    report(args.output)
+
+
+if __name__ == "__main__":
+    main()
