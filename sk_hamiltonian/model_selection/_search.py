@@ -45,33 +45,55 @@ class HamiltonianSearchCV(BaseEstimator):
     and model space, the normal equations of every fold come from one pass
     over the data, and every degree and threshold is a smaller solve on them.
 
-    The search runs in three stages on the same folds of whole trajectories,
-    and a fourth on all of them:
+    The search prepares the data, then runs three stages on the same folds
+    and a fourth on all the data:
 
+    0. **Prepare** the data (:mod:`~sk_hamiltonian.model_selection._prepare`):
+       samples far from their neighbours (spikes, dropped readings) are left
+       out and their trajectories cut there, repeated trajectories left out,
+       both named in an :class:`~sk_hamiltonian.OutlierWarning` and in
+       ``preparation_``; with fewer than two trajectories per fold, the
+       records are cut into contiguous segments and each fold holds out a
+       contiguous stretch of them (blocked cross-validation); exact data
+       (noise below 0.001 % of every variable) are searched with finite
+       differences and the fit targets exact to ``O(dt**4)`` only (Simpson's
+       pairs, the weak form).
     1. **Screen** the model spaces (``spaces``) on one reference layout (the
-       middle de-noising degree) and the derivative fit, at the smallest
-       degree: each candidate's held-out *equation error* (the relative
-       residual of the held-out trajectories' least-squares rows) ranks
-       spaces, degrees and thresholds honestly, since they are all measured
-       against the same targets. The spaces whose best candidate ties with
-       the best one are kept (at most three: the smallest models first).
+       middle de-noising degree) and the derivative fit (Simpson's pairs for
+       exact data), at the smallest degree: each candidate's held-out
+       *equation error* (the relative residual of the held-out trajectories'
+       least-squares rows) ranks spaces, degrees and thresholds against the
+       same targets. The spaces the data cannot reject against the best are
+       kept, the smallest models first (at most three): a candidate is
+       rejected only when it is worse by one standard error, unpaired and
+       paired over the folds, and by 5 % (the part of an equation error a
+       richer model can take from the bias of the estimated derivatives).
     2. **Search** every layout and fit target in the kept spaces, degree by
-       degree from the smallest (a degree no better than the best below it,
-       within one standard error, ends the space's search), at every
-       threshold; within each layout and fit target the candidate with the
-       fewest terms among those tied with the lowest mean equation error (one
-       standard error) is that pair's *finalist*.
-    3. **Score** the finalists by the regressors' default rollout score
-       against the held-out raw observations (which never sees the
-       derivatives or smoothed states being compared), and choose by
-       ``selection``.
+       degree from the smallest (a degree no better than the best below it
+       ends the space's search), at every threshold; within each layout and
+       fit target, the candidate with the fewest terms among those the data
+       cannot reject against the lowest equation error is that pair's
+       *finalist*.
+    3. **Choose** among the finalists by the regressors' default rollout
+       score against the held-out raw observations (which never sees the
+       derivatives or smoothed states being compared), by ``selection``.
+       When the finalists the scores cannot tell apart keep different terms,
+       each set of terms is fitted to all the raw trajectories (output error,
+       one noise model for all) and the lowest Bayesian information criterion
+       decides (``judgement_``): the exact law against its Taylor series, on
+       no fold at all.
     4. **Refine** (``refine="trajectories"``) the chosen model, refitted on
        all the data: the coefficients of its kept terms are fitted to the
        raw trajectories themselves, each simulated from an initial state of
-       its own, with weights from a noise model ``a_i + b_i x_i^2`` per
-       variable estimated from the residuals (the output-error estimate).
-       The terms stay those chosen; their coefficients no longer carry the
-       bias and noise of the estimated derivatives.
+       its own (long records in segments no longer than half a period of the
+       model, nor than its instability allows), weighted by a noise model
+       ``a_i + b_i x_i^2`` per variable (the output-error estimate). The
+       result is first checked on data it was not fitted on: with every
+       other fold held out, then the rest, the least-squares pick and its
+       trajectory fit, both fitted on the other folds, are compared on the
+       held-out trajectories; the refinement is kept only where it explains
+       them as well (within 0.5 %) and its fit on all the data converges,
+       else the least-squares coefficients stay and ``refinement_`` says why.
 
     Parameters
     ----------
@@ -122,7 +144,9 @@ class HamiltonianSearchCV(BaseEstimator):
         best mean score.
     cv : int, cross-validation generator or iterable, default=5
         Folds of whole trajectories, as in
-        :class:`~sklearn.model_selection.GridSearchCV`.
+        :class:`~sklearn.model_selection.GridSearchCV`; with too few
+        trajectories for them (fewer than two per fold), the number of folds
+        of contiguous segments of the records (stage 0).
     n_jobs : int, default=None
         Layouts, fit targets and spaces assembled in parallel (joblib).
     verbose : int, default=0
@@ -157,11 +181,28 @@ class HamiltonianSearchCV(BaseEstimator):
         Number of folds.
     refinement_ : dict
         Stage 4's outcome: ``status`` (``"refined"``, ``"not asked"``, or
-        ``"kept: "`` and why the least-squares coefficients were kept), and
-        when refined ``n_terms``, ``n_iter`` (Levenberg-Marquardt iterations),
-        ``noise`` (the variance model's ``(a_i, b_i)`` per variable),
-        ``rms`` (the root-mean-square residual per variable) and ``change``
-        (the largest relative change of a kept coefficient).
+        ``"kept: "`` and why the least-squares coefficients were kept);
+        ``check``, the held-out check's misfits (least squares, trajectory
+        fit); and when refined ``n_terms``, ``n_iter`` (Levenberg-Marquardt
+        iterations), ``converged``, ``noise`` (the variance model's ``(a_i,
+        b_i)`` per variable) and ``noise_source`` (``"residuals"``, or
+        ``"data"`` where the residuals' own could not be trusted), ``rms``
+        (the root-mean-square residual per variable), ``misfit`` (each
+        trajectory's root-mean-square residual in units of the noise model),
+        ``n_segments`` and ``change`` (the largest relative change of a kept
+        coefficient).
+    preparation_ : dict
+        Stage 0's outcome: ``left_out`` (each trajectory's samples left out
+        as spikes, numbered as in ``X``), ``dropped`` (trajectories left out
+        whole), ``duplicates`` (each repeated trajectory and the one it
+        repeats), ``segments`` (None, or how few long records were cut),
+        ``noise`` (the data's own noise model, ``(a_i, b_i)`` per variable)
+        and ``clean`` (whether the data look exact).
+    judgement_ : dict or None
+        Stage 3's verdict among tied finalists keeping different terms
+        (None when they keep the same): ``terms`` of each, their ``rss``
+        (weighted residual sums of squares), ``n_terms``, ``bic`` and
+        ``best``.
     refit_time_ : float
         Seconds of the final fit on all the data, the refinement included.
     search_time_ : float
