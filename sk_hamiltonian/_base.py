@@ -95,6 +95,11 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
         self.random_state = random_state
         self.n_jobs = n_jobs
 
+    @property
+    def _fit_target(self):
+        """What the least-squares fit matches: a fit on trajectories starts from the derivatives."""
+        return "derivatives" if self.fit_on == "trajectories" else self.fit_on
+
     # ------------------------------------------------------------------ fit
     @_fit_context(prefer_skip_nested_validation=True)
     def fit(self, X, y=None, sample_weight=None):
@@ -137,6 +142,9 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
         """
         self._check_integer_params()
         self._clear_resampled()
+        self._clear_trajectory_fit()
+        if self.fit_on == "trajectories":
+            self._check_trajectory_input(X, y, sample_weight)
         if is_dask(X) or is_dask(y):
             self._check_no_resampling("a fit on dask arrays")
             return fit_distributed(self, X, y, sample_weight)
@@ -163,7 +171,25 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
             # each trajectory (one more pass over the data; _resampling).
             with limit_blas(gram_flops(design.n_rows(data), design.n_columns)):
                 self._set_resampled(fit_resamples(self, space, data))
+        if self.fit_on == "trajectories":
+            self._fit_trajectories(X)
         return self
+
+    def _check_trajectory_input(self, X, y, sample_weight):
+        """Refuse what a fit on trajectories cannot take, before anything is fitted."""
+        raise ValueError(
+            f"{type(self).__name__} has no fit on trajectories: use fit_on='derivatives', "
+            f"'steps', 'simpson' or 'weak', or a HamiltonianRegressor."
+        )
+
+    def _fit_trajectories(self, X):
+        """The fit on the raw trajectories after the least-squares start (subclasses)."""
+
+    def _clear_trajectory_fit(self):
+        """Drop the attributes of an earlier fit on trajectories."""
+        for name in ("trajectory_fit_status_", "noise_", "trajectory_misfit_",
+                     "coef_covariance_"):
+            self.__dict__.pop(name, None)
 
     def _check_no_resampling(self, what):
         """Refuse ``n_resamples > 0`` where the trajectories are not at hand."""
@@ -387,11 +413,11 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
                                self._dynamics())
 
     def _default_method(self):
-        return simulation.default_method(self.fit_on)
+        return simulation.default_method(self._fit_target)
 
     def _default_step(self, method):
         """The step ``simulate`` takes when ``max_step`` is None."""
-        return simulation.default_step(method, fit_on=self.fit_on, dt=self.dt_,
+        return simulation.default_step(method, fit_on=self._fit_target, dt=self.dt_,
                                        time_scale=self.time_scale_)
 
     def simulate(self, x0, t, *, method=None, max_step=None, on_failure="raise"):

@@ -2,6 +2,9 @@
 
 import numpy as np
 
+from sklearn.utils._param_validation import StrOptions
+
+from . import _fit_trajectories
 from ._base import DOMAIN_SLACK, BaseTrajectoryRegressor
 from ._config import use_numba
 from ._conservation import conservation_message, decorrelated, energy_trend, trend_verdict
@@ -80,7 +83,7 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
         for a ring. Functions of one variable always enter. It combines with
         ``separable`` and ``max_interaction``. None: any variables may be
         coupled.
-    fit_on : {"derivatives", "steps", "simpson", "weak"}, default="derivatives"
+    fit_on : {"derivatives", "steps", "simpson", "weak", "trajectories"}, default="derivatives"
         What the model is fitted to. ``"derivatives"``: the paper's fit, the
         gradient against the estimated time derivatives. ``"steps"``: the
         observed steps ``x0 -> x1`` of the trajectories, so that the
@@ -107,7 +110,17 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
         :meth:`simulate` uses RK4. Needs at least three samples per
         trajectory. The last three need the derivative layout as input (its
         states: raw with finite differences, smoothed with the polynomial
-        method).
+        method). ``"trajectories"``: the derivative fit, then the kept terms'
+        coefficients (and the friction) fitted to the raw observed
+        trajectories the layout carries, each simulated from an initial
+        state of its own (the output-error estimate, free of the derivative
+        estimate's bias and as precise as the data allow; see
+        :ref:`fit_targets`). It is first checked on data it was not fitted
+        on (every other training trajectory held out, then the rest) and
+        kept only where it explains them as well as the least-squares fit;
+        ``trajectory_fit_status_`` says what happened. Needs the derivative
+        layout, takes no ``sample_weight``, and fits at most 40 kept terms
+        (use a ``threshold``).
     threshold : float, default=0.0
         Sparsity threshold. 0 fits every basis function (the paper's fit).
         A positive value runs sequentially thresholded least squares (STLSQ)
@@ -234,6 +247,26 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
         their variables decorrelated, so that one long conservative
         trajectory has a spread; NaN when fitted on 2-D states).
         Near zero for conservative data, negative when they lose energy.
+    trajectory_fit_status_ : str
+        With ``fit_on="trajectories"`` (or after the refinement of
+        :class:`~sk_hamiltonian.model_selection.HamiltonianSearchCV`):
+        ``"refined"``, or ``"kept: "`` and why the least-squares coefficients
+        were kept.
+    noise_ : ndarray of shape (n_states, 2)
+        With ``fit_on="trajectories"``, when refined: the noise model of
+        each state variable, variance ``a_i + b_i x_i**2`` (additive and
+        relative noise), as ``(a_i, b_i)``.
+    trajectory_misfit_ : ndarray of shape (n_trajectories,)
+        With ``fit_on="trajectories"``, when refined: each training
+        trajectory's root-mean-square residual in units of ``noise_`` (about
+        1 where the model explains it; far above, a trajectory it does not).
+    coef_covariance_ : ndarray of shape (n_coef, n_coef)
+        With ``fit_on="trajectories"``, when refined: the covariance of
+        ``coef_`` (then ``damping_``, for a damped model: ``n_coef = n_basis
+        + n_dof``), a sandwich estimate with the trajectories as clusters
+        (robust to a wrong noise model; see :ref:`intervals`). It covers the
+        spread of the estimate from sample to sample, not a wrong set of
+        terms.
     energy_trend_z_ : float
         The trend's z-score: slope over its cluster-robust standard error
         (each trajectory, or with fewer than 20 trajectories each stretch of
@@ -280,6 +313,7 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
 
     _parameter_constraints = {
         **BaseTrajectoryRegressor._parameter_constraints,
+        "fit_on": [StrOptions({"derivatives", "steps", "simpson", "weak", "trajectories"})],
         "damping": ["boolean"],
     }
 
@@ -300,6 +334,12 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
         self.damping = damping
 
     # ------------------------------------------------------------------ fit
+    def _check_trajectory_input(self, X, y, sample_weight):
+        _fit_trajectories.check_input(self, X, y, sample_weight)
+
+    def _fit_trajectories(self, X):
+        _fit_trajectories.fit_on_trajectories(self, X)
+
     def _check_dimensions(self, n_states):
         check_n_states(n_states)
 
@@ -313,14 +353,14 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
                 f"y must hold the time derivative of every state variable, with the "
                 f"same shape as X {data.states.shape}; got shape {data.derivatives.shape}."
             )
-        n_rows = data.n_rows(self.fit_on) * n_states
+        n_rows = data.n_rows(self._fit_target) * n_states
         n_unknowns = self._n_terms(n_states)
         if n_rows < n_unknowns:
             what = {"steps": "observed steps", "simpson": "pairs of steps",
                     "weak": "weak-form windows"}.get(
-                self.fit_on, "samples")
+                self._fit_target, "samples")
             raise ValueError(
-                f"The data give {data.n_rows(self.fit_on)} {what}, that is {n_rows} "
+                f"The data give {data.n_rows(self._fit_target)} {what}, that is {n_rows} "
                 f"equations for {n_unknowns} unknowns at degree={self.degree}: the "
                 f"least-squares problem is underdetermined. Provide more samples (more "
                 f"or longer trajectories), lower `degree`, or restrict the space "
@@ -328,7 +368,7 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
             )
 
     def _design(self, space):
-        return HamiltonianDesign(space, self.fit_on, self.damping)
+        return HamiltonianDesign(space, self._fit_target, self.damping)
 
     def _set_coef(self, coef):
         space = self._space
@@ -341,13 +381,17 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
         if self.damping:
             self.resampled_damping_ = coef[:, n_terms:]
 
-    def _resampled_field(self):
-        """``field(Y, models)``: the vector fields of the refits ``models`` at the rows of ``Y``."""
-        coef = self.resampled_coef_
+    def _resampled_field(self, coef=None, damping=None):
+        """``field(Y, models)``: the vector fields of the refits ``models`` at the rows of ``Y``.
+
+        The refits are ``resampled_coef_`` (and ``resampled_damping_``), or
+        the rows of ``coef`` (and ``damping``) when given.
+        """
+        if coef is None:
+            coef, damping = self.resampled_coef_, getattr(self, "resampled_damping_", None)
         rows = np.any(coef != 0, axis=0)
         space = ModelSpace(self.domain_, self.powers_[rows], self.periodic_, self._mixed())
         coef = coef[:, rows]
-        damping = getattr(self, "resampled_damping_", None)
 
         def field(Y, models):
             gradient = np.einsum("sij,sj->si", space.gradients(Y), coef[models])

@@ -137,6 +137,18 @@ HAMILTONIAN = {
                       "a finite 1-D array of non-negative floats"),
     "energy_trend_": Scalar(FLOAT, _any_float, "a float"),
     "energy_trend_z_": Scalar(FLOAT, _any_float, "a float"),
+    # The fit on trajectories (fit_on="trajectories"): its outcome, and when
+    # accepted the noise model, each trajectory's misfit and the covariance
+    # of coef_ (then damping_, for a damped model).
+    "trajectory_fit_status_": Scalar(
+        (str,), lambda v: v == "refined" or (v.startswith("kept: ") and len(v) < 2000),
+        "'refined' or 'kept: ' and a reason"),
+    "noise_": Array("float64", (("n", 2),), _finite_nonnegative,
+                    "a finite (n_states, 2) array of non-negative floats"),
+    "trajectory_misfit_": Array("float64", (("t",),), _finite_nonnegative,
+                                "a finite 1-D array of non-negative floats"),
+    "coef_covariance_": Array("float64", (("b", "b"), ("bd", "bd")), _finite,
+                              "a finite square float array over coef_ (then damping_)"),
 }
 #: Private fitted state saved explicitly (the rest is rebuilt from the public).
 PRIVATE = {
@@ -267,6 +279,9 @@ def _dimensions(model, name, values, declared, fail):
              f"(p_1..p_d, q_1..q_d); the file is corrupted.")
     if "powers_" in declared:
         dims["b"] = _first(declared["powers_"][1])
+        dims["bd"] = dims["b"] + dims.get("d", 0)
+    if "trajectory_misfit_" in declared:
+        dims["t"] = _first(declared["trajectory_misfit_"][1])
     if "coef_" in declared and len(declared["coef_"][1]) == 2:
         dims["o"] = declared["coef_"][1][1]
     if "resampled_coef_" in declared:

@@ -7,7 +7,6 @@ cross-validation.
 
 import numpy as np
 
-from .._outliers import listed
 from .._trajectories import check_trajectories
 from ..datasets import PAPER_DT, make_trajectories, single_pendulum
 from ..model_selection import segment_trajectories

@@ -32,9 +32,17 @@ from .segments import (
     shooting_segments,
     split_times,
 )
-from .solver import TrajectoryFitError, fit_initial_states, fit_trajectories
+from .solver import (
+    TrajectoryFitError,
+    fit_initial_states,
+    fit_trajectories,
+    sandwich_covariance,
+)
 from .terms import KeptTerms
 
+# Scores are clustered by trajectory (the segments of one record share it)
+# when there are at least this many, else by segment.
+MIN_CLUSTERS = 10
 # The trajectory fit is rejected when its held-out misfit exceeds the
 # least-squares fit's by more than this fraction: a fit that fails does so by
 # tens of percent or orders of magnitude, and one that ties should not lose to
@@ -78,7 +86,9 @@ def refine(regressor, trajectories, dt, *, least_squares=None, held_out=None):
     ----------
     regressor : HamiltonianRegressor
         Fitted by least squares; ``coef_``, ``support_`` and ``damping_`` are
-        updated in place when the fit is accepted.
+        updated in place when the fit is accepted, and the fit's outcome set
+        as its attributes ``trajectory_fit_status_`` and, when accepted,
+        ``noise_``, ``trajectory_misfit_`` and ``coef_covariance_``.
     trajectories : list of ndarray of shape (n_times_k, n_columns)
         The raw trajectories the regressor was fitted on, with their time
         stamps in the first column when ``dt`` is None.
@@ -106,8 +116,29 @@ def refine(regressor, trajectories, dt, *, least_squares=None, held_out=None):
         root-mean-square residual per variable); ``misfit`` (each
         trajectory's root-mean-square residual in units of the noise model,
         about 1 where the model explains it); ``n_segments``; ``change``
-        (the largest relative change of a kept coefficient).
+        (the largest relative change of a kept coefficient); ``covariance``,
+        that of ``coef_`` (then of ``damping_`` for a damped model), the
+        sandwich of :func:`~.solver.sandwich_covariance` with the scores
+        clustered by trajectory (by segment with fewer than
+        :data:`MIN_CLUSTERS` trajectories).
     """
+    info = _refine(regressor, trajectories, dt, least_squares, held_out)
+    _set_outcome(regressor, info)
+    return info
+
+
+def _set_outcome(regressor, info):
+    """The fitted attributes of a trajectory fit: its status, and when refined its estimates."""
+    for name in ("noise_", "trajectory_misfit_", "coef_covariance_"):
+        regressor.__dict__.pop(name, None)
+    regressor.trajectory_fit_status_ = info["status"]
+    if info["status"] == "refined":
+        regressor.noise_ = np.asarray(info["noise"], dtype=float)
+        regressor.trajectory_misfit_ = np.asarray(info["misfit"], dtype=float)
+        regressor.coef_covariance_ = np.asarray(info["covariance"], dtype=float)
+
+
+def _refine(regressor, trajectories, dt, least_squares, held_out):
     terms = KeptTerms(regressor)
     if terms.reason is not None:
         return dict(status=f"kept: {terms.reason}")
@@ -137,10 +168,16 @@ def refine(regressor, trajectories, dt, *, least_squares=None, held_out=None):
     n_obs = _per_trajectory([mask.sum(axis=1) * Y.shape[2] for Y, _, mask in groups], owners,
                             len(times))
     misfit = np.sqrt(_per_trajectory(result["misfit"], owners, len(times)) / n_obs)
+    segment_owner = np.concatenate(owners)
+    clusters = (segment_owner if np.unique(segment_owner).size >= MIN_CLUSTERS
+                else np.arange(segment_owner.size))
+    covariance = sandwich_covariance(result["information"], np.concatenate(result["scores"]),
+                                     clusters)
     info = dict(status="refined", n_terms=terms.n_terms, n_iter=result["n_iter"],
                 converged=result["converged"], noise=result["noise"],
                 noise_source=result["noise_source"], rms=result["rms"], misfit=misfit,
-                n_segments=sum(len(Y) for Y, _, _ in groups), change=change)
+                n_segments=sum(len(Y) for Y, _, _ in groups), change=change,
+                covariance=terms.fitting_covariance(covariance, len(regressor.coef_)))
     if check is not None:
         info["check"] = check
     return info

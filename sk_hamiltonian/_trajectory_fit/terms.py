@@ -79,6 +79,20 @@ class KeptTerms:
             gradients_and_hessian=_from_one_table(sub, columns),
         )
 
+    def fitting_covariance(self, covariance, n_basis):
+        """A covariance of the parameters as that of ``coef_`` (then the friction).
+
+        ``coef_`` moves by ``to_fitting @ theta``, so its covariance is
+        ``to_fitting Sigma to_fitting^T``; the friction's block follows.
+        Returns an array of shape (n_basis + n_friction,) * 2.
+        """
+        n_theta = len(self.theta0)
+        n_friction = covariance.shape[0] - n_theta
+        T = np.zeros((n_basis + n_friction, n_theta + n_friction))
+        T[:n_basis, :n_theta] = self.to_fitting
+        T[n_basis:, n_theta:] = np.eye(n_friction)
+        return T @ covariance @ T.T
+
     def apply(self, regressor, params):
         """Set ``params`` (coefficients, then friction) as the regressor's, in place.
 

@@ -1,0 +1,1 @@
+"""The parts of :mod:`sk_hamiltonian.inspection`: terms, formula, intervals, sympy."""
