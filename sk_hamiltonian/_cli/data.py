@@ -69,7 +69,7 @@ class Data:
         self.folds = prepared.folds
         self.segmented = prepared.report["segments"] is not None
         self.groups = None
-        self._split()
+        self._split(self.horizon)
 
 
 def load_data(args):

@@ -94,6 +94,7 @@ def run_discovery(args, data):
             f"rollouts), selection = {search.selection}"
         ),
         refine=refine,
+        refinement=search.refinement_,
     )
 
 

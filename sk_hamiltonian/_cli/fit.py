@@ -45,8 +45,9 @@ def run(args):
     model = best[-1]
     print_choice(result)
     resample_time = resample_chosen(args, data, best)
-    intervals = resample_time is not None
-    refinement = _refine_chosen(result, model, intervals, names)
+    refinement = _refine_chosen(result, model, resample_time is not None, names)
+    intervals = (resample_time is not None
+                 or getattr(model, "coef_covariance_", None) is not None)
     print(f"learned: {format_hamiltonian(model, state_names=names, intervals=intervals)}")
     if model.damping:
         d = len(model.damping_)
@@ -147,31 +148,44 @@ def _prepare_output(directory):
         ) from None
 
 
-def _refine_chosen(result, model, intervals, names):
-    """The search's refinement of ``model``'s coefficients, applied (again, after a refit).
+def _refine_chosen(result, model, refitted, names):
+    """The search's refinement of ``model``'s coefficients, said (and applied again after a refit).
 
     The resampling refits the chosen regressor by least squares; the
-    search's refinement on the raw trajectories is applied to it once more.
-    Returns the refinement's outcome (None when the search made none).
+    search's refinement on the raw trajectories is then applied to it once
+    more (``refitted``). Returns the refinement's outcome (None when the
+    search made none).
     """
-    if result.refine is None:
+    if result.refine is None and result.refinement is None:
         return None
-    info = result.refine(model)
+    info = result.refine(model) if refitted and result.refine is not None else result.refinement
     if info["status"] != "refined":
         print(f"refined: no, {info['status']}")
         return info
+    # The held-out check is the search's (a refit's refinement is not checked again).
+    check = info.get("check") or (result.refinement or {}).get("check") or {}
+    checked = ""
+    if check.get("misfit") is not None:
+        least, refined = check["misfit"]
+        checked = (f"; on held-out trajectories its misfit is {refined:.4g} against "
+                   f"{least:.4g} for least squares")
     print(
         f"refined: the {counted(info['n_terms'], 'kept coefficient')}"
         + (" and the friction" if model.damping else "")
         + " fitted to the raw "
         f"trajectories (output error, {counted(info['n_iter'], 'iteration')}); largest "
-        f"change {100 * info['change']:.2g}%"
-        + ("; the intervals stay the least-squares refits' spread" if intervals else "")
+        f"change {100 * info['change']:.2g}%{checked}"
     )
     if info["noise"] is not None:
         parts = [f"{name} {np.sqrt(a):.2g} + {100 * np.sqrt(b):.2g}%"
                  for name, (a, b) in zip(names, info["noise"])]
         print(f"noise (sd, additive + relative, estimated): {', '.join(parts)}")
+    misfit = info.get("misfit")
+    if misfit is not None and len(misfit):
+        worst = int(np.argmax(misfit))
+        print(f"misfit of each trajectory in units of that noise: median "
+              f"{np.median(misfit):.2g}, largest {misfit[worst]:.2g} (about 1 where the model "
+              f"explains a trajectory)")
     return info
 
 

@@ -162,8 +162,14 @@ def show(argv):
         from ..inspection import format_hamiltonian, hamiltonian_terms
 
         resampled = getattr(regressor, "resampled_coef_", None) is not None
-        print(f"learned: {format_hamiltonian(regressor, state_names=names, intervals=resampled)}")
-        if resampled:
+        covariance = getattr(regressor, "coef_covariance_", None) is not None
+        print(f"learned: {format_hamiltonian(regressor, state_names=names, intervals=resampled or covariance)}")
+        if covariance:
+            print("  (the intervals: the trajectory fit's own, from its sandwich covariance "
+                  "stored in the file" + (f"; the inclusion counts: "
+                                          f"{regressor.resampled_coef_.shape[0]} least-squares "
+                                          f"refits on resamples)" if resampled else ")"))
+        elif resampled:
             print(f"  (the intervals: {regressor.resampled_coef_.shape[0]} refits on "
                   f"{regressor.resample} resamples of whole trajectories, stored in the file)")
         terms = hamiltonian_terms(regressor, state_names=names)

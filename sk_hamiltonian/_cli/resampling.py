@@ -40,16 +40,18 @@ def resample_chosen(args, data, best):
     unit = "segments" if data.groups is not None else "trajectories"
     print(
         f"resampling: {counted(n, 'bootstrap resample')} of the {n_trajectories} {unit}, "
-        f"each refitted with the chosen threshold, in {seconds:.1f} s; the intervals "
-        f"below are their 90% percentile intervals (the spread from one sample of {unit} "
-        f"to another, not a bias every sample shares, such as the de-noising's)"
+        f"each refitted with the chosen threshold, in {seconds:.1f} s: how often each term is "
+        f"kept; the intervals below are the trajectory fit's own where the coefficients were "
+        f"refined, else these refits' 90% percentile intervals (the spread from one sample "
+        f"of {unit} to another, not a bias every sample shares, such as the de-noising's)"
     )
     return seconds
 
 
 def band_or_none(model, x0, t):
-    """The 90 % prediction band of the resampled refits from ``x0`` over ``t``, or None."""
-    if getattr(model, "resampled_coef_", None) is None:
+    """The 90 % prediction band from ``x0`` over ``t`` (the trajectory fit's, else the refits'), or None."""
+    if (getattr(model, "resampled_coef_", None) is None
+            and getattr(model, "coef_covariance_", None) is None):
         return None
     low, _, high = prediction_band(model, x0, t)
     return low, high

@@ -38,8 +38,8 @@ THRESHOLD_KEY = "hamiltonianregressor__threshold"
 SearchResult = namedtuple(
     "SearchResult",
     ["best", "cv_results", "best_index", "labels", "n_fits", "fit_time", "warned", "summary",
-     "refine"],
-    defaults=(None,),
+     "refine", "refinement"],
+    defaults=(None, None),
 )
 SearchResult.__doc__ = """What a search hands to the report and the model file.
 
@@ -52,7 +52,8 @@ seconds for the whole search with the refit; ``warned``: the sorted names of
 the warning categories the candidates raised; ``summary``: one line on how
 the search ran, for the model file's provenance; ``refine``: None, or
 ``refine(regressor)``, the search's refinement of the chosen coefficients on
-the raw trajectories, applied again after a refit (returns its outcome).
+the raw trajectories, applied again after a refit (returns its outcome);
+``refinement``: the search's own outcome of it (None without one).
 """
 
 
