@@ -77,6 +77,8 @@ from sk_hamiltonian.model_selection import HamiltonianSearchCV  # noqa: E402
 from sk_hamiltonian.model_selection._prepare import prepare  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE))
+from search_study import fresh_error  # noqa: E402
 T_END = 20.0
 N_FRESH = 10
 
@@ -180,22 +182,6 @@ def fresh_states(name, long):
     inside[..., angles] = np.isfinite(orbit[..., angles])
     keep = np.flatnonzero(np.all(inside, axis=(1, 2)))[:N_FRESH]
     return x0[keep], orbit[keep, -1]
-
-
-def fresh_error(simulate, x0, truth, angles):
-    """Median relative state error at T over the fresh states (inf where a rollout fails)."""
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            Y = np.asarray(simulate(x0))
-    except Exception:  # noqa: BLE001 -- a model that cannot be simulated fails
-        return math.inf
-    d = Y - truth
-    if angles:
-        d[:, angles] = (d[:, angles] + np.pi) % (2 * np.pi) - np.pi
-    with np.errstate(invalid="ignore", over="ignore"):
-        e = np.linalg.norm(d, axis=1) / np.linalg.norm(truth, axis=1)
-    return float(np.median(np.where(np.isfinite(e), e, np.inf)))
 
 
 def model_error(model, name, long):

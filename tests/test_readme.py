@@ -64,7 +64,7 @@ def check_search_example(printed):
 
 def test_readme_snippets_find_what_they_import():
     blocks = code_blocks("python")
-    assert len(blocks) == 5
+    assert len(blocks) == 6
     for i, block in enumerate(blocks):
         assert not unresolved_imports(block), (i, unresolved_imports(block))
 
@@ -72,9 +72,16 @@ def test_readme_snippets_find_what_they_import():
 @pytest.mark.slow
 def test_readme_snippets_run_as_pasted(tmp_path):
     blocks = code_blocks("python")
-    assert len(blocks) == 5
+    assert len(blocks) == 6
     check_search_example(run_fresh(blocks[0], tmp_path))
     check_hamiltonian_example(run_fresh(blocks[1], tmp_path))
+    printed = run_fresh(blocks[2], tmp_path)
+    # The trajectory fit in a pipeline: accepted, the two terms with their
+    # intervals, and the noise it estimated (uniform 8 %: 0.08 / sqrt(3)).
+    assert re.match(r"refined H~ = -9\.\d+ \(±[\d.]+\) cos\(q\) \+ 0\.\d+ \(±[\d.]+\) "
+                    r"p\^2 \+ const \(90% intervals of the trajectory fit\)\n", printed), printed
+    assert "noise (relative sd): [0.046 0.046]" in printed, printed
+    blocks = blocks[:2] + blocks[3:]
     printed = run_fresh(blocks[2], tmp_path)
     chosen = re.search(r"\{'derivativetransformer__degree': (\d+), "
                        r"'hamiltonianregressor__degree': (\d+)\} (\d+) terms", printed)

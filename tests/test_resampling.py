@@ -18,8 +18,8 @@ from sk_hamiltonian._cli import main
 from sk_hamiltonian._resampling import resample_weights
 from sk_hamiltonian._trajectories import pack_derivatives
 from sk_hamiltonian.datasets import double_well, make_trajectories, single_pendulum
+from sk_hamiltonian._inspection.formula import _rounded
 from sk_hamiltonian.inspection import (
-    _rounded,
     format_hamiltonian,
     prediction_band,
     resampled_models,
