@@ -31,6 +31,8 @@ from .solver import TrajectoryFitError
 
 # A segment spans at most this many periods (2 pi time_scale) of the model ...
 SEGMENT_PERIODS = 0.5
+# ... where its trajectory spans more than this many such segments ...
+LONG_SPANS = 4
 # ... and ends before the model's instability grows an error of its initial
 # state more than this many times.
 MAX_GROWTH = 10.0
@@ -89,12 +91,14 @@ def shooting_segments(times, states, max_duration, rates=None):
     budget = np.log(MAX_GROWTH)
     out_times, out_states, owner = [], [], []
     for k, (t, Y) in enumerate(zip(times, states)):
+        # A trajectory of a few periods keeps its phase information whole.
+        span = max_duration if t[-1] - t[0] > LONG_SPANS * max_duration else np.inf
         growth = np.zeros(len(t))
         if rates is not None:
             r = rates[k]
             growth[1:] = np.cumsum(np.diff(t) * (r[1:] + r[:-1]) / 2)
         start = 0
-        for stop in _cuts(t, growth, max_duration, budget):
+        for stop in _cuts(t, growth, span, budget):
             out_times.append(t[start:stop])
             out_states.append(Y[start:stop])
             owner.append(k)

@@ -15,7 +15,7 @@ import warnings
 import numpy as np
 
 from ._fold_problems import FoldProblems, take
-from ._selection import EXACT_FLOOR, RELATIVE_TIE, pick_within
+from ._selection import DEGREE_GAIN, EXACT_FLOOR, pick_within
 
 # Training equations per unknown a candidate needs in every fold.
 ROWS_PER_UNKNOWN = 2
@@ -41,7 +41,7 @@ def search_unit(Xt, folds, spaces, fit_on, degrees, thresholds, damping, domain,
         params = {**space, "fit_on": fit_on, "damping": damping}
         # Degrees from the smallest, each assembled on its own: a degree whose
         # best candidate is no better than the best below (by more than one
-        # standard error and RELATIVE_TIE) ends the space's search, as the
+        # standard error and DEGREE_GAIN) ends the space's search, as the
         # larger ones, which cost the most, would add terms the data do not
         # need.
         best = None
@@ -68,7 +68,7 @@ def search_unit(Xt, folds, spaces, fit_on, degrees, thresholds, damping, domain,
             if here is None:
                 break
             mean = errors[here].mean()
-            if best is not None and (best[0] - mean <= max(best[1], RELATIVE_TIE * best[0])
+            if best is not None and (best[0] - mean <= max(best[1], DEGREE_GAIN * best[0])
                                      or best[0] <= EXACT_FLOOR):
                 break
             best = (mean, errors[here].std() / np.sqrt(n_folds))
