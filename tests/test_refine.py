@@ -170,3 +170,72 @@ def test_trajectories_sampled_at_times_of_their_own():
     info = refine_on_trajectories(model, stamped, None)
     assert info["status"] == "refined"
     assert relative_errors(model).max() < 1e-6
+
+
+def test_padded_groups_fit_as_groups_of_one_length():
+    # Segments of different lengths integrate side by side, the shorter
+    # padded with steps of zero and masked: the same fit as one group each.
+    import sk_hamiltonian._trajectory_fit.segments as segments
+    from sk_hamiltonian._trajectory_fit import KeptTerms, group_by_times
+
+    X = make_trajectories(single_pendulum(), 24, 40, dt=DT, noise=0.02, random_state=3)
+    model = least_squares(X)
+    terms = KeptTerms(model)
+    lengths = 30 + np.arange(24) % 11
+    times = [DT * np.arange(n) for n in lengths]
+    states = [T[:n] for T, n in zip(X, lengths)]
+    padded, _ = group_by_times(times, states, 0.01)
+    fraction = segments.PADDED_FRACTION
+    try:
+        segments.PADDED_FRACTION = 1.0
+        apart, _ = group_by_times(times, states, 0.01)
+    finally:
+        segments.PADDED_FRACTION = fraction
+    assert len(padded) == 1 and len(apart) == 11
+    a = fit_trajectories(terms.model, terms.start, padded, n_reweights=0)
+    b = fit_trajectories(terms.model, terms.start, apart, n_reweights=0)
+    np.testing.assert_allclose(a["theta"], b["theta"], rtol=1e-7)
+
+
+def test_long_records_are_cut_where_the_model_grows_errors_or_spans_many_periods():
+    from sk_hamiltonian._trajectory_fit.segments import (
+        MAX_GROWTH,
+        MIN_SEGMENT_SAMPLES,
+        shooting_segments,
+    )
+
+    t = np.linspace(0.0, 10.0, 1001)
+    Y = np.zeros((1001, 2))
+    # Short against the span: whole.
+    _, pieces, _ = shooting_segments([t], [Y], max_duration=5.0)
+    assert len(pieces) == 1
+    # More than four spans: cut into pieces of at most one span.
+    times, _, owner = shooting_segments([t], [Y], max_duration=2.0)
+    assert len(times) == 5 and all(s[-1] - s[0] <= 2.0 for s in times)
+    assert np.all(owner == 0)
+    # A growth rate of 1: a piece ends where exp(its integral) reaches MAX_GROWTH.
+    times, _, _ = shooting_segments([t], [Y], max_duration=np.inf, rates=[np.ones(1001)])
+    spans = [s[-1] - s[0] for s in times]
+    assert max(spans) <= np.log(MAX_GROWTH) + 1e-9
+    assert sum(len(s) for s in times) == 1001
+    assert min(len(s) for s in times) >= MIN_SEGMENT_SAMPLES
+
+
+def test_initial_states_alone_are_fitted_with_the_coefficients_fixed(exact):
+    from sk_hamiltonian._trajectory_fit import KeptTerms, fit_initial_states, group_by_times
+    from sk_hamiltonian._trajectory_fit.noise import difference_noise_model
+
+    model = least_squares(exact)
+    refine_on_trajectories(model, list(exact), DT)
+    terms = KeptTerms(model)
+    noisy = exact + 0.01 * np.random.default_rng(0).standard_normal(exact.shape)
+    times = [DT * np.arange(exact.shape[1])] * len(exact)
+    groups, _ = group_by_times(times, list(noisy), 0.01)
+    noise = difference_noise_model(list(noisy))
+    right = np.concatenate(fit_initial_states(terms.model, terms.theta0, groups, noise))
+    wrong = np.concatenate(fit_initial_states(terms.model, 1.1 * terms.theta0, groups, noise))
+    # With the right coefficients each trajectory's misfit is its noise: about
+    # one per observation; 10 % off, far more.
+    n_obs = exact.shape[1] * exact.shape[2]
+    assert 0.5 < np.median(right) / n_obs < 1.5
+    assert np.median(wrong) > 10 * np.median(right)

@@ -129,3 +129,21 @@ def test_a_refinement_that_explains_held_out_data_worse_is_rejected_with_its_rea
     least, refined = info["check"]["misfit"]
     assert refined > 2 * least
     np.testing.assert_array_equal(model.coef_, start)
+
+
+def test_the_trajectories_judge_a_law_against_its_taylor_series():
+    from sk_hamiltonian._trajectory_fit import difference_noise_model
+    from sk_hamiltonian.model_selection._finalists import judge_supports
+
+    X = make_trajectories(single_pendulum(), 100, 40, dt=0.01, noise=0.02, random_state=0)
+    Xt = DerivativeTransformer(dt=0.01, degree=5).fit_transform(X)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        taylor = HamiltonianRegressor(6, momentum_degree=2, threshold=0.001).fit(Xt)
+        law = HamiltonianRegressor(4, periodic=[False, True], momentum_degree=2,
+                                   threshold=0.03).fit(Xt)
+    assert len(hamiltonian_terms(taylor)) > 2
+    judgement = judge_supports([taylor, law], list(X), 0.01,
+                               difference_noise_model(list(X)))
+    assert judgement["best"] == 1
+    assert judgement["rss"][1] < judgement["rss"][0]
