@@ -986,3 +986,85 @@ def test_a_falling_energy_is_read_by_the_friction_fitted(damping, reading):
     model = SimpleNamespace(energy_trend_=-0.4, energy_trend_z_=-12.0, time_scale_=0.32,
                             damping_=np.array([damping]))
     assert reading in describe_energy_trend(model)
+
+
+def _spring(noise, seed=0):
+    """An anharmonic spring ``p^2/2 + q^2/2 + q^4/4`` (not among the datasets)."""
+    from sk_hamiltonian.datasets import HamiltonianSystem
+
+    system = HamiltonianSystem(
+        "spring", lambda X: X[..., 0] ** 2 / 2 + X[..., 1] ** 2 / 2 + X[..., 1] ** 4 / 4,
+        lambda X: np.stack([X[..., 0], X[..., 1] + X[..., 1] ** 3], axis=-1),
+        domain=[[-1.5, 1.5], [-1.5, 1.5]], initial_state=[0.3, 1.2])
+    rng = np.random.default_rng(seed)
+    X = system.solve(rng.uniform(-1.5, 1.5, size=(200, 2)), 0.05 * np.arange(41),
+                     max_step=0.005)
+    return X + noise * np.sqrt(np.mean(X.reshape(-1, 2) ** 2, axis=0)) * rng.standard_normal(
+        X.shape)
+
+
+@pytest.mark.slow
+def test_the_command_and_the_python_search_find_the_same_law(tmp_path, capsys):
+    # They once used different folds and printed different laws for one file.
+    import warnings
+
+    from sk_hamiltonian.inspection import hamiltonian_terms
+    from sk_hamiltonian.model_selection import HamiltonianSearchCV
+
+    X = _spring(0.03)
+    path = tmp_path / "spring.npz"
+    np.savez(path, trajectories=X)
+    status, out, _ = run([str(path), "--dt", "0.05", "--no-resample", "--output",
+                          str(tmp_path / "out")], capsys)
+    assert status == 0
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        search = HamiltonianSearchCV(dt=0.05).fit(X)
+    python = {t.text: t.coefficient for t in hamiltonian_terms(search.best_estimator_[-1])}
+    learned = re.search(r"^learned: H~ = (.*?) \+ const", out, flags=re.M).group(1)
+    # The command prints each coefficient to its interval's first digit.
+    command = {term: float(sign + value) for sign, value, term in re.findall(
+        r"([+-]?) ?([\d.]+) \(±[^)]*\) (\S+)", learned)}
+    assert set(command) == set(python) == {"p^2", "q^2", "q^4"}
+    for term, value in python.items():
+        assert command[term] == pytest.approx(value, rel=2e-3)
+
+
+@pytest.mark.slow
+def test_spikes_are_named_and_left_out(tmp_path, capsys):
+    X = make_trajectories(single_pendulum(), 200, 40, dt=0.01, noise=0.02, random_state=0)
+    X[[5, 17, 17], [10, 3, 30]] = 1e6
+    path = tmp_path / "spiky.npz"
+    np.savez(path, trajectories=X)
+    status, out, _ = run([str(path), "--dt", "0.01", "--quick", "--no-resample", "--output",
+                          str(tmp_path / "out")], capsys)
+    assert status == 0
+    # The three spikes, and trajectory 17's first three samples (a piece
+    # shorter than ten, before its spike at 3); the other pieces stay.
+    assert re.search(r"^note: left out 6 samples of 2 trajectories as spikes .*: 5, 17$", out,
+                     flags=re.M), out
+    learned = re.search(r"^learned: (.*)$", out, flags=re.M).group(1)
+    assert "cos(q)" in learned and "p^2" in learned
+
+
+def test_too_few_trajectories_say_so_before_fitting(tmp_path, capsys):
+    X = make_trajectories(single_pendulum(), 2, 40, dt=0.01, noise=0.02, random_state=0)
+    path = tmp_path / "two.npz"
+    np.savez(path, trajectories=X)
+    line = error_of([str(path), "--dt", "0.01", "--output", str(tmp_path / "out")], capsys)
+    assert "Too few data for 5 folds: 2 trajectories of 82 samples" in line
+
+
+@pytest.mark.slow
+def test_one_long_record_is_segmented_by_the_searchs_own_rule(tmp_path, capsys):
+    system = single_pendulum()
+    record = system.solve(system.initial_state, 0.01 * np.arange(2001))
+    record = record + 0.02 * record.std(axis=0) * np.random.default_rng(0).standard_normal(
+        record.shape)
+    path = tmp_path / "record.npz"
+    np.savez(path, trajectories=record[np.newaxis])
+    status, out, _ = run([str(path), "--dt", "0.01", "--quick", "--no-resample", "--output",
+                          str(tmp_path / "out")], capsys)
+    assert status == 0
+    assert "cut into 20 contiguous segments of 100 samples" in out
+    assert "5 folds of contiguous segments" in out

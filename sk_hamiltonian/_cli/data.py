@@ -7,10 +7,13 @@ cross-validation.
 
 import numpy as np
 
+import warnings
+
 from .._trajectories import check_trajectories
+from ..exceptions import OutlierWarning
 from ..datasets import PAPER_DT, make_trajectories, single_pendulum
 from ..model_selection import segment_trajectories
-from ..model_selection._prepare import prepare
+from ..model_selection._prepare import MIN_PIECE_SAMPLES, prepare
 from .datafiles import load_trajectories
 from .errors import UsageError, check_positive
 from .words import counted
@@ -182,7 +185,10 @@ def prepare_for_search(args, data):
     """
     trajectories, _ = check_trajectories(data.X, min_times=MIN_SAMPLES)
     try:
-        prepared = prepare(trajectories, data.dt, args.cv, None)
+        with warnings.catch_warnings():
+            # What was left out is said below, in the command's words.
+            warnings.simplefilter("ignore", OutlierWarning)
+            prepared = prepare(trajectories, data.dt, args.cv, None)
     except ValueError as error:
         raise UsageError(" ".join(str(error).split()).replace("cv)", "--cv)")) from None
     report = prepared.report
@@ -193,8 +199,10 @@ def prepare_for_search(args, data):
 
     if report["left_out"]:
         n = sum(len(v) for v in report["left_out"].values())
-        print(f"note: left out {counted(n, 'sample')} of {counted(len(report['left_out']), 'trajectory', 'trajectories')} "
-              f"as spikes (far from their neighbours), each trajectory cut there: "
+        print(f"note: left out {counted(n, 'sample')} of "
+              f"{counted(len(report['left_out']), 'trajectory', 'trajectories')} as spikes (far "
+              f"from their neighbours; each trajectory is cut there, and pieces of fewer than "
+              f"{MIN_PIECE_SAMPLES} samples are left out with them): "
               f"{named(report['left_out'])}")
     if report["dropped"]:
         print(f"note: left out {counted(len(report['dropped']), 'trajectory', 'trajectories')} "

@@ -109,14 +109,17 @@ def draw_report(path, t, curves, truth, errors, model, rk4, avf, observed, names
 
 
 def _draw_band(ax, t, band, model):
-    """Shade the prediction band of the resampled refits, one colour per state variable."""
+    """Shade the prediction band (the trajectory fit's, or the refits'), one colour per state variable."""
     if band is None:
         return
     low, high = band
-    n = model.resampled_coef_.shape[0]
+    if getattr(model, "coef_covariance_", None) is not None:
+        label = "90% band of the trajectory fit's coefficients"
+    else:
+        label = f"90% band of {model.resampled_coef_.shape[0]} resampled refits"
     for i in range(low.shape[1]):
         ax.fill_between(t, low[:, i], high[:, i], color=f"C{i}", alpha=0.2, lw=0,
-                        label=f"90% band of {n} resampled refits" if i == 0 else None)
+                        label=label if i == 0 else None)
 
 
 def _energy(model, t, run):

@@ -61,7 +61,7 @@ MAX_SPIKE_FRACTION = 0.2
 # Pieces between spikes shorter than this are left out: the de-noising
 # polynomials of the search need degree + 2 samples, and its largest default
 # degree is 8.
-MIN_PIECE_SAMPLES = 11
+MIN_PIECE_SAMPLES = 10
 # Trajectories each fold should hold out before long records are cut.
 MIN_PER_FOLD = 2
 # Segments per fold when records are cut, and their bounds.
