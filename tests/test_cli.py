@@ -74,6 +74,9 @@ def test_default_example_finds_the_law(demo):
     model = load(out_dir / "model.skh")
     assert model[-1].n_terms_ == 2 and list(model[-1].periodic) == [False, True]
     assert not (out_dir / "model.joblib").exists()  # pickle only on request (--joblib)
+    # The example's own horizon (5 with --quick, 20 without), not ten times the
+    # prepared trajectories' duration (0.4 here), which a data file would get.
+    assert "simulated from u0* = (-3.876, -1.193) up to T = 5 " in out, out
     sp = number(r"SP\s+relative error at T: (\S+)", out)
     non_sp = number(r"non-SP\s+relative error at T: (\S+)", out)
     assert 0 < sp < 1 and non_sp > 0

@@ -34,7 +34,9 @@ class Data:
     ``dt`` is the transformer's step (None with time stamps), ``step`` the
     (median) sampling step; ``groups`` the CV groups of segments (or None);
     ``folds`` the held-out rows of each fold of the default search, once the
-    data are prepared for it (:meth:`use_prepared`).
+    data are prepared for it (:meth:`use_prepared`). ``horizon`` is the
+    report's simulated span: the one given (the built-in example's), or ten
+    times the median duration of the trajectories as they are now.
     """
 
     def __init__(self, X, names, ids, stamped, dt, title, system=None, horizon=None):
@@ -42,9 +44,12 @@ class Data:
         self.dt, self.title, self.system = dt, title, system
         self.groups = self.folds = None
         self.segmented = False
-        self._split(horizon)
+        # Kept apart so that cutting or preparing the data, which re-splits
+        # them, does not replace a given horizon by one from the segments.
+        self._given_horizon = horizon
+        self._split()
 
-    def _split(self, horizon=None):
+    def _split(self):
         if self.stamped:
             self.times = [np.asarray(T)[:, 0] for T in self.X]
             self.states = [np.asarray(T)[:, 1:] for T in self.X]
@@ -54,7 +59,7 @@ class Data:
         steps = np.concatenate([np.diff(t) for t in self.times])
         self.step = self.dt if self.dt is not None else float(np.median(steps))
         # By default, ten times the median duration over all trajectories.
-        self.horizon = horizon or 10.0 * float(np.median([t[-1] - t[0] for t in self.times]))
+        self.horizon = self._given_horizon or 10.0 * float(np.median([t[-1] - t[0] for t in self.times]))
 
     def use_segments(self, segments, ids, groups):
         self.X, self.ids, self.groups = segments, ids, groups
