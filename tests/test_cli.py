@@ -10,6 +10,7 @@ import sys
 import numpy as np
 import pytest
 
+import sk_hamiltonian
 from sk_hamiltonian import load
 from sk_hamiltonian.__main__ import main
 from sk_hamiltonian._cli import fit as cli_fit
@@ -309,6 +310,17 @@ def test_help_documents_the_options(capsys):
                    "simulate MODEL"):
         assert option in out
     assert "--quick" not in out
+
+
+@pytest.mark.parametrize("command", [[], ["show"], ["simulate"]])
+def test_help_names_no_version_but_the_package_s(capsys, command):
+    with pytest.raises(SystemExit):
+        main([*command, "--help"])
+    out = " ".join(capsys.readouterr().out.split())  # argparse wraps lines anywhere
+    # A version the package has not reached says nothing to a reader of 0.1.
+    assert set(re.findall(r"\bversion (\d+(?:\.\d+)*)", out)) <= {sk_hamiltonian.__version__}
+    if not command:
+        assert "--paper-grid" in out and "the command's earlier default" in out
 
 
 def test_python_dash_m_entry_point():

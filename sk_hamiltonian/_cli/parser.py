@@ -184,7 +184,7 @@ def build_parser():
         "--paper-grid", action="store_true",
         help="the paper's setting: a GridSearchCV over (Q, n) in the polynomial space, "
         "derivative fits, every term kept unless --threshold says otherwise (the command's "
-        "default before version 0.2)",
+        "earlier default, before it searched model spaces, fit targets and thresholds)",
     )
     parser.add_argument(
         "--domain", type=float, nargs=2, action="append", metavar=("LOW", "HIGH"),
