@@ -11,6 +11,7 @@ from ._integrate.compiled import KernelModel
 from ._kernels import LANE_ROWS
 from ._least_squares import HamiltonianDesign
 from ._space import ModelSpace, compiled
+from ._state_order import warn_if_order_looks_swapped
 from ._structure import apply_structure
 from ._trajectories import check_n_states
 from ._warnings import warn
@@ -264,7 +265,11 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
     the data. An :class:`~sk_hamiltonian.OutlierWarning` names trajectories
     whose residuals are far outside the rest. See the user guide
     (Measurements: calibrating the conservation check, outlying
-    trajectories).
+    trajectories). After any fit, a
+    :class:`~sk_hamiltonian.StateOrderWarning` says when ``H~`` looks like
+    a negated Hamiltonian with its halves exchanged, as states given in
+    ``(q, p)`` order give: its Hessian negative definite in the momenta
+    (averaged over the training states) and in the positions.
 
     Examples
     --------
@@ -375,6 +380,7 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
 
     def _after_fit(self, data):
         super()._after_fit(data)
+        warn_if_order_looks_swapped(self, data.states)
         self.energy_trend_, self.energy_trend_z_ = float("nan"), float("nan")
         if data.trajectories is None:
             return
