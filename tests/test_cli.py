@@ -323,6 +323,17 @@ def test_help_names_no_version_but_the_package_s(capsys, command):
         assert "--paper-grid" in out and "the command's earlier default" in out
 
 
+def test_a_transposed_npz_array_is_named_as_such(tmp_path, capsys, pendulum_data):
+    # (40, 31, 2) saved as (40, 2, 31): read as it is, 31 columns would pass for
+    # time stamps and 15 states, and the error would be about those.
+    path = tmp_path / "transposed.npz"
+    np.savez(path, trajectories=pendulum_data.transpose(0, 2, 1))
+    line = error_of([str(path), "--dt", "0.02", "--output", str(tmp_path / "out")], capsys)
+    assert "the array has shape (40, 2, 31), 2 samples of 31 columns per trajectory" in line
+    assert "looks transposed: save it as X.transpose(0, 2, 1)" in line
+    assert "time stamps" not in line
+
+
 def test_python_dash_m_entry_point():
     result = subprocess.run(
         [sys.executable, "-m", "sk_hamiltonian", "--help"], capture_output=True, text=True,

@@ -3,6 +3,7 @@
 Each test is named after what it protects.
 """
 
+import re
 import warnings
 
 import numpy as np
@@ -126,3 +127,39 @@ def test_pipeline_predict_on_states_points_to_the_regressor():
     with pytest.raises(ValueError, match=r"pipe\[-1\]\.predict\(states\)"):
         pipe.predict(states)
     assert pipe[-1].predict(states).shape == states.shape
+
+
+@pytest.mark.parametrize("make", [
+    lambda X: X.transpose(0, 2, 1),
+    lambda X: [T.T for T in X],
+    lambda X: [X[0].T, X[1, :30].T],
+], ids=["array", "list", "list_of_lengths"])
+@pytest.mark.parametrize("method", ["finite_difference", "polynomial"])
+def test_transposed_trajectories_are_named_as_such_in_one_line(make, method):
+    from sk_hamiltonian.datasets import make_trajectories, single_pendulum
+
+    X = make_trajectories(single_pendulum(), 100, 40, dt=0.01, random_state=0)
+    with pytest.raises(ValueError) as error:
+        DerivativeTransformer(dt=0.01, method=method).fit(make(X))
+    message = str(error.value)
+    assert "looks transposed" in message and "\n" not in message
+    assert "sample(s)" not in message  # not "has 2 sample(s)"
+    if isinstance(make(X), np.ndarray):
+        assert "X has shape (100, 2, 41)" in message
+        assert "pass X.transpose(0, 2, 1), of shape (100, 41, 2)" in message
+    else:
+        assert "pass [T.T for T in X]" in message
+    # The code the message gives turns the input back into trajectories.
+    fix = re.search(r"pass (.*?)(?:, of shape|\.$)", message).group(1)
+    fixed = eval(fix, {"X": make(X)})  # noqa: S307 (the message's own code)
+    DerivativeTransformer(dt=0.01, method=method).fit(fixed)
+
+
+def test_short_trajectories_are_not_called_transposed():
+    # Two samples of two variables: too short, not transposed (the long axis
+    # is neither); the message keeps to the samples.
+    X = np.random.default_rng(0).normal(size=(5, 2, 2))
+    with pytest.raises(ValueError, match=r"has 2 sample\(s\); at least 3") as error:
+        DerivativeTransformer(dt=0.1, method="finite_difference").fit(X)
+    assert "transposed" not in str(error.value)
+

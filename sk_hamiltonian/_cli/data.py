@@ -12,14 +12,12 @@ from .._trajectories import check_trajectories
 from ..datasets import PAPER_DT, make_trajectories, single_pendulum
 from ..model_selection import segment_trajectories
 from ..model_selection._prepare import prepare
-from .datafiles import load_trajectories
+from .datafiles import MIN_SAMPLES, load_trajectories
 from .errors import UsageError, check_positive
 from .words import counted
 
 EXAMPLE = dict(n_trajectories=500, n_intervals=40, noise=0.08, horizon=20.0)
 QUICK = dict(n_trajectories=60, n_intervals=40, noise=0.08, horizon=5.0)
-# Fewest samples a trajectory needs for any derivative estimate.
-MIN_SAMPLES = 3
 # Segments of a record too long to cross-validate whole: the paper's
 # trajectory length (one de-noising polynomial each with the default window),
 # shortened so that every fold gets at least two segments.
