@@ -163,3 +163,40 @@ def test_short_trajectories_are_not_called_transposed():
         DerivativeTransformer(dt=0.1, method="finite_difference").fit(X)
     assert "transposed" not in str(error.value)
 
+
+@pytest.mark.parametrize("x0", ["a", ["a", "b"], [[1.0, 2.0], [3.0]], {"p": 1.0}])
+def test_initial_states_that_are_not_numbers_name_x0(pendulum, x0):
+    *_, model = pendulum
+    with pytest.raises(ValueError, match=r"^x0 must be numbers: one initial state of 2 values "
+                                         r"\(p_1\.\.p_d, q_1\.\.q_d\), or several as the rows"):
+        model.simulate(x0, np.linspace(0, 1, 5))
+
+
+def test_output_times_that_are_not_numbers_name_t(pendulum):
+    *_, model = pendulum
+    with pytest.raises(ValueError, match=r"^t must be a 1-D array of numbers, the output times; "
+                                         r"got 'soon'\.$"):
+        model.simulate([0.1, 0.2], "soon")
+
+
+@pytest.mark.parametrize("Regressor", [HamiltonianRegressor, VectorFieldRegressor])
+def test_negative_sample_weight_names_the_argument(pendulum, Regressor):
+    X, y, _ = pendulum
+    weight = np.ones(len(X))
+    weight[[3, 7]] = -1.0
+    with pytest.raises(ValueError, match=r"^sample_weight must be non-negative \(one weight per "
+                                         r"state; 0 leaves it out\); got -1 at index 3 and 1 "
+                                         r"more negative\. Drop the sign"):
+        Regressor(degree=3).fit(X, y, sample_weight=weight)
+
+
+def test_negative_trajectory_weight_names_the_argument():
+    from sk_hamiltonian.datasets import make_trajectories, single_pendulum
+
+    X = make_trajectories(single_pendulum(), 20, 40, dt=0.01, random_state=0)
+    pipe = make_pipeline(DerivativeTransformer(dt=0.01), HamiltonianRegressor(degree=4))
+    weight = np.ones(20)
+    weight[5] = -0.5
+    with pytest.raises(ValueError, match=r"^sample_weight must be non-negative \(one weight per "
+                                         r"trajectory; 0 leaves it out\); got -0\.5 at index 5\."):
+        pipe.fit(X, hamiltonianregressor__sample_weight=weight)
