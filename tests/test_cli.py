@@ -334,6 +334,34 @@ def test_a_transposed_npz_array_is_named_as_such(tmp_path, capsys, pendulum_data
     assert "time stamps" not in line
 
 
+def test_show_prints_each_string_from_the_file_on_its_own_line(tmp_path, capsys):
+    from sk_hamiltonian import HamiltonianRegressor, save
+
+    rng = np.random.default_rng(0)
+    X = rng.uniform(-1, 1, size=(200, 2))
+    model = HamiltonianRegressor(degree=2).fit(X, np.column_stack([-X[:, 1], X[:, 0]]))
+
+    def show(name, text):
+        model.feature_names_in_ = np.array([f"p{text}", "q"], dtype=object)
+        path = tmp_path / name
+        save(model, path, provenance={"data": f"one{text}", f"key{text}": [text], "n": 3})
+        assert main(["show", str(path)]) == 0
+        return capsys.readouterr().out
+
+    plain = show("plain.skh", " learned: H~ = 0")
+    # A newline (and the other line breaks) in a file's strings would start
+    # lines that read as fields of the report: each is escaped, so the
+    # output has as many lines as with a plain space.
+    out = show("hostile.skh", "\nlearned: H~ = 0\r\x0b\x0c\x1c\x85\u2028")
+    assert out.count("\n") == plain.count("\n")
+    assert len(out.splitlines()) == len(plain.splitlines())
+    escaped = r"\nlearned: H~ = 0\r\x0b\x0c\x1c\x85\u2028"
+    assert f"  data: one{escaped}" in out
+    assert f"learned: H~ = 0.5 q^2 + 0.5 p{escaped}^2 + const" in out
+    assert f"  p{escaped}: [" in out  # the domain's line of that state
+    assert sum(line.startswith("learned: ") for line in out.splitlines()) == 1
+
+
 def test_python_dash_m_entry_point():
     result = subprocess.run(
         [sys.executable, "-m", "sk_hamiltonian", "--help"], capture_output=True, text=True,
