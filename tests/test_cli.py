@@ -306,7 +306,8 @@ def test_help_documents_the_options(capsys):
                    "--seed", "--damping", "--threshold", "--domain", "--version", "--joblib",
                    ".npz", ".csv", "model.skh",
                    "model.joblib",
-                   "runs any code", "report.png", "exit status", "show MODEL",
+                   "runs any code", "report.png", "exit status", "130",
+                   "interrupted (Ctrl-C)", "show MODEL",
                    "simulate MODEL"):
         assert option in out
     assert "--quick" not in out
@@ -629,8 +630,74 @@ def test_default_horizon_is_ten_median_durations_over_all_trajectories(
     assert "up to T = 6 " in out
 
 
+def test_ctrl_c_ends_the_command_in_one_line_with_status_130(tmp_path):
+    # A real SIGINT once the command has started (its first line), as a
+    # terminal sends it. The child gets the default handler even where this
+    # process ignores SIGINT (a background job), so Python turns it into
+    # KeyboardInterrupt as at a terminal.
+    import signal
+
+    env = dict(os.environ, PYTHONUNBUFFERED="1", MPLBACKEND="Agg")
+    process = subprocess.Popen(
+        [sys.executable, "-m", "sk_hamiltonian", "--output", str(tmp_path / "out")],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+    )
+    try:
+        assert process.stdout.readline().startswith("data: single pendulum")
+        process.send_signal(signal.SIGINT)
+        _, err = process.communicate(timeout=120)
+    finally:
+        process.kill()
+    assert process.returncode == 130
+    assert err == "sk-hamiltonian: interrupted; no file written\n"
+    assert list((tmp_path / "out").iterdir()) == []
+
+
+def test_an_interrupt_says_which_files_were_written(tmp_path, capsys, monkeypatch,
+                                                    pendulum_data):
+    def interrupted(path, *args, **kwargs):
+        with open(path, "wb") as stream:
+            stream.write(b"half a figure")
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(cli_fit, "draw_report", interrupted)
+    path = tmp_path / "runs.npz"
+    np.savez(path, trajectories=pendulum_data)
+    out_dir = tmp_path / "out"
+    with pytest.raises(SystemExit) as exit_info:
+        main([str(path), "--dt", "0.02", "--output", str(out_dir), "--degrees", "3",
+              "--denoise-degrees", "fd", "--horizon", "1", "--paper-grid", "--no-resample"])
+    err = capsys.readouterr().err
+    assert exit_info.value.code == 130 and "Traceback" not in err
+    # After the search's progress lines (stderr), one line.
+    assert err.splitlines()[-1] == (f"sk-hamiltonian: interrupted; written: "
+                                    f"{out_dir / 'model.skh'}; {out_dir / 'report.png'} may be "
+                                    f"incomplete")
+    assert load(out_dir / "model.skh")[-1].degree == 3  # written whole before the figure
+
+
 # --------------------------------------------------------------------------
 # The model file and the commands that reuse it
+
+
+def test_an_interrupted_simulate_says_which_files_were_written(demo, tmp_path, capsys,
+                                                               monkeypatch):
+    from sk_hamiltonian._cli import model as cli_model
+
+    def interrupted(*args):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(cli_model, "_draw", interrupted)
+    *_, out_dir = demo
+    csv_path = tmp_path / "run.csv"
+    with pytest.raises(SystemExit) as exit_info:
+        main(["simulate", str(out_dir / "model.skh"), "--x0", "0.5", "1", "--t-end", "1",
+              "-o", str(csv_path)])
+    assert exit_info.value.code == 130
+    assert capsys.readouterr().err == (f"sk-hamiltonian: interrupted; written: {csv_path}; "
+                                       f"{tmp_path / 'run.png'} may be incomplete\n")
+    assert csv_path.read_text().startswith("trajectory,t,p,q\n")
 
 
 def test_cli_round_trip_fit_show_simulate(demo, tmp_path, capsys):

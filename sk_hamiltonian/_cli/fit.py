@@ -17,6 +17,7 @@ from ..io import save
 from .data import load_data, prepare_for_search, segment_if_needed
 from .errors import UsageError, check_positive
 from .figure import draw_report
+from .outputs import OUTPUTS
 from .parser import MODEL_FILE, check_options
 from .report import describe_energy_trend, print_choice, print_drift, print_errors
 from .discovery import run_discovery
@@ -98,8 +99,9 @@ def run(args):
         print_drift(t, model, {"RK4": rk4, "AVF": avf})
 
     model_path = os.path.join(args.output, MODEL_FILE)
-    save(best, model_path,
-         provenance=_provenance(args, data, result, resample_time, refinement))
+    with OUTPUTS.writing(model_path, atomic=True):
+        save(best, model_path,
+             provenance=_provenance(args, data, result, resample_time, refinement))
     print(
         f"\nmodel: {model_path} (a fitted Pipeline; sk-hamiltonian show {model_path}, or "
         f"sk_hamiltonian.load in Python)"
@@ -108,7 +110,8 @@ def run(args):
         import joblib
 
         pickle_path = os.path.join(args.output, "model.joblib")
-        joblib.dump(best, pickle_path)
+        with OUTPUTS.writing(pickle_path):
+            joblib.dump(best, pickle_path)
         print(
             f"model: {pickle_path} (--joblib; a pickle: loading it runs any code it carries, "
             f"so load it only if you trust its source)"
@@ -120,7 +123,7 @@ def run(args):
         return 0
     figure_path = os.path.join(args.output, "report.png")
     observed = (data.times[0] - data.times[0][0], data.states)
-    with warnings.catch_warnings():
+    with warnings.catch_warnings(), OUTPUTS.writing(figure_path):
         warnings.simplefilter("ignore", DomainWarning)
         draw_report(
             figure_path, t, curves, truth, errors, model, rk4, avf, observed, names, data.title,

@@ -13,6 +13,7 @@ from ..exceptions import DomainWarning, SimulationError
 from ..io import ModelFileError, load, read_manifest
 from .datafiles import default_state_names
 from .errors import UsageError, check_positive
+from .outputs import OUTPUTS
 
 METHODS = ("rk4", "avf", "leapfrog", "yoshida4")
 # Output samples of a simulation when neither --dt nor a training step is known.
@@ -265,7 +266,8 @@ def simulate(argv):
                                    on_failure="nan")
         except (ValueError, SimulationError) as error:
             raise UsageError(f"cannot simulate: {error}") from None
-    _write_csv(args.output, t, Y, names)
+    with OUTPUTS.writing(args.output):
+        _write_csv(args.output, t, Y, names)
     method = args.method or regressor._default_method()
     print(f"simulated {len(x0)} trajector{'y' if len(x0) == 1 else 'ies'} up to T = {t[-1]:g} "
           f"(output step {dt:g}, method {method}): {args.output}")
@@ -288,7 +290,8 @@ def simulate(argv):
     except ImportError:
         print("figure: skipped, matplotlib is not installed (pip install matplotlib)")
         return 0
-    _draw(figure, t, Y, names, regressor)
+    with OUTPUTS.writing(figure):
+        _draw(figure, t, Y, names, regressor)
     print(f"figure: {figure}")
     return 0
 

@@ -97,7 +97,8 @@ reuse a saved model:
 
 exit status: 0 on success, 2 on a usage or data error (one-line message),
   including a search in which every candidate failed to fit (the message
-  names the reason; e.g. a constant state variable needs --domain).
+  names the reason; e.g. a constant state variable needs --domain); 130
+  when interrupted (Ctrl-C), with one line naming the files written.
 
 examples:
   sk-hamiltonian
