@@ -13,12 +13,13 @@ from .._integrate.simulation import MAX_STEPS, check_outputs
 from .._vector_field import VectorFieldRegressor
 from ..exceptions import DomainWarning
 from ..inspection import format_hamiltonian
+from .._memory import SizeLimitError
 from ..io import save
 from .data import load_data, prepare_for_search, segment_if_needed
 from .errors import UsageError, check_positive
 from .figure import draw_report
 from .outputs import OUTPUTS
-from .parser import MODEL_FILE, check_options
+from .parser import MODEL_FILE, check_options, check_resamples
 from .report import describe_energy_trend, print_choice, print_drift, print_errors
 from .discovery import run_discovery
 from .resampling import band_or_none, resample_chosen
@@ -34,6 +35,7 @@ def run(args):
         data = segment_if_needed(args, data)
     else:
         data = prepare_for_search(args, data)
+    check_resamples(args.resamples, len(data.X))
     horizon = args.horizon if args.horizon is not None else data.horizon
     check_positive("--horizon", horizon)
     # Before the search: a horizon beyond the simulation limits fails at once.
@@ -45,7 +47,13 @@ def run(args):
     best = result.best
     model = best[-1]
     print_choice(result)
-    resample_time = resample_chosen(args, data, best)
+    try:
+        resample_time = resample_chosen(args, data, best)
+    except SizeLimitError:
+        # The regressor refused the count for the chosen model's size: say
+        # it with the command's option.
+        check_resamples(args.resamples, len(data.X), model._n_terms(len(names)))
+        raise
     intervals = resample_time is not None
     refinement = _refine_chosen(result, model, intervals, names)
     print(f"learned: {format_hamiltonian(model, state_names=names, intervals=intervals)}")
