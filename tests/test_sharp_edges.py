@@ -172,6 +172,16 @@ def test_initial_states_that_are_not_numbers_name_x0(pendulum, x0):
         model.simulate(x0, np.linspace(0, 1, 5))
 
 
+@pytest.mark.parametrize("x0", ["a", [[1.0, 2.0], [3.0]]])
+def test_a_systems_initial_states_that_are_not_numbers_name_x0(x0):
+    from sk_hamiltonian.datasets import single_pendulum
+
+    with pytest.raises(ValueError, match=r"^x0 must be numbers: one initial state of 2 values"):
+        single_pendulum().solve(x0, np.linspace(0, 1, 5))
+    with pytest.raises(ValueError, match=r"^t must be a 1-D array of numbers"):
+        single_pendulum().solve([0.1, 0.2], "soon")
+
+
 def test_output_times_that_are_not_numbers_name_t(pendulum):
     *_, model = pendulum
     with pytest.raises(ValueError, match=r"^t must be a 1-D array of numbers, the output times; "
