@@ -87,13 +87,13 @@ def check_trajectories(X, *, name="X", min_times=1):
     if not trajectories:
         raise ValueError(f"{name} holds no trajectory; at least one is required.")
     widths = {T.shape[1] for T in trajectories}
-    lengths = [T.shape[0] for T in trajectories]
     if len(widths) > 1:
         transposed = _transposed_hint(name, trajectories, is_array, min_times)
         raise ValueError(transposed or (
             f"The trajectories in {name} have different numbers of features "
             f"{sorted(widths)}; all must have the same."
         ))
+    lengths = [T.shape[0] for T in trajectories]
     shortest = int(np.argmin(lengths))
     if lengths[shortest] < min_times:
         transposed = _transposed_hint(name, trajectories, is_array, min_times)

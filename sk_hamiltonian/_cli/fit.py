@@ -10,10 +10,10 @@ from sklearn.pipeline import make_pipeline
 from .._derivatives import DerivativeTransformer
 from .._integrate import integrate
 from .._integrate.simulation import MAX_STEPS, check_outputs
+from .._memory import SizeLimitError
 from .._vector_field import VectorFieldRegressor
 from ..exceptions import DomainWarning
 from ..inspection import format_hamiltonian
-from .._memory import SizeLimitError
 from ..io import save
 from .data import load_data, prepare_for_search, segment_if_needed
 from .errors import UsageError, check_positive
