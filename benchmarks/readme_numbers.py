@@ -24,7 +24,7 @@ the program changes, run this script and copy what it prints into README.md
 block). Timings are printed for the text but not compared: they follow the
 machine's load.
 
-Run (about a minute and a half on two cores)::
+Run (3 minutes on two shared cores, measured under load)::
 
     python benchmarks/readme_numbers.py
 """
