@@ -17,6 +17,7 @@ from .exceptions import (
     OutlierWarning,
     SimulationError,
     SmoothingWarning,
+    StateOrderWarning,
 )
 
 __version__ = "0.1.0"
@@ -31,6 +32,7 @@ __all__ = [
     "OutlierWarning",
     "SimulationError",
     "SmoothingWarning",
+    "StateOrderWarning",
     "VectorFieldRegressor",
     "config_context",
     "get_config",

@@ -14,10 +14,12 @@ from ._integrate.compiled import KernelModel
 from ._kernels import LANE_ROWS
 from ._least_squares import HamiltonianDesign
 from ._space import ModelSpace, compiled
+from ._state_order import warn_if_order_looks_swapped
 from ._structure import apply_structure
 from ._trajectories import check_n_states
 from ._warnings import warn
 from .exceptions import ConservationWarning
+from .inspection import format_hamiltonian
 
 # A fitted damping is "not backed" by the data when H~ does not fall along
 # them by even one standard error (cluster-robust z above -1).
@@ -297,7 +299,11 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
     the data. An :class:`~sk_hamiltonian.OutlierWarning` names trajectories
     whose residuals are far outside the rest. See the user guide
     (Measurements: calibrating the conservation check, outlying
-    trajectories).
+    trajectories). After any fit, a
+    :class:`~sk_hamiltonian.StateOrderWarning` says when ``H~`` looks like
+    a negated Hamiltonian with its halves exchanged, as states given in
+    ``(q, p)`` order give: its Hessian negative definite in the momenta
+    (averaged over the training states) and in the positions.
 
     Examples
     --------
@@ -419,6 +425,7 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
 
     def _after_fit(self, data):
         super()._after_fit(data)
+        warn_if_order_looks_swapped(self, data.states)
         self.energy_trend_, self.energy_trend_z_ = float("nan"), float("nan")
         if data.trajectories is None:
             return
@@ -534,6 +541,50 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
         flat, lead = self._check_states(X)
         self._warn_outside(flat)
         return self._hamiltonian(flat).reshape(lead)
+
+    def equations(self, *, state_names=None, max_terms=8, intervals=False):
+        """The learned Hamiltonian as a formula, ``"H~ = c1 t1 + c2 t2 + ... + const"``.
+
+        What :func:`sk_hamiltonian.inspection.format_hamiltonian` gives for
+        this model: its leading terms in the readable basis (monomials and
+        angles of the variables as given), largest first. ``repr(model)``
+        stays scikit-learn's, the parameters, fitted or not.
+
+        Parameters
+        ----------
+        state_names : list of str, default=None
+            Names of the state variables; None uses ``feature_names_in_`` if
+            the model was fitted on named columns, else ``p, q`` (``p1.., q1..``
+            for several degrees of freedom).
+        max_terms : int, default=8
+            How many terms to show; the rest are summarized.
+        intervals : bool or float, default=False
+            With ``n_resamples > 0``: each coefficient followed by the half
+            width of its interval over the refits (True: 90 %).
+
+        Returns
+        -------
+        formula : str
+            One line.
+
+        Raises
+        ------
+        sklearn.exceptions.NotFittedError
+            Before :meth:`fit`.
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from sk_hamiltonian import HamiltonianRegressor
+        >>> rng = np.random.default_rng(0)
+        >>> X = rng.uniform(-1, 1, size=(200, 2))              # states (p, q)
+        >>> y = np.column_stack([-X[:, 1], X[:, 0]])           # H = (p^2 + q^2) / 2
+        >>> HamiltonianRegressor(degree=2).fit(X, y).equations()
+        'H~ = 0.5 q^2 + 0.5 p^2 + const'
+        """
+        self._check_fitted()
+        return format_hamiltonian(self, state_names=state_names, max_terms=max_terms,
+                                  intervals=intervals)
 
     def gradient(self, X):
         """Gradient of the learned Hamiltonian, ``grad H~``.

@@ -3,9 +3,11 @@
 Strings in a model file (provenance, state names, version fields) are data
 from wherever the file came from. Printed raw, control characters in them
 could move the cursor, clear the screen, retitle the terminal window or
-reorder the text (bidirectional overrides). :func:`printable` shows each such
-character as its Python escape (``\\x1b``, ``\\u202e``) instead, and
-:func:`escaping_output` applies it to everything a function prints.
+reorder the text (bidirectional overrides), and a newline in one would
+start a line that looks like another field. :func:`printable` shows each
+such character as its Python escape (``\\x1b``, ``\\u202e``, ``\\n``)
+instead, and :func:`escaping_output` applies it to everything a function
+prints (but the newlines that end its lines).
 """
 
 import contextlib
@@ -13,30 +15,38 @@ import functools
 import sys
 
 
-def printable(text):
+def printable(text, *, keep_newline=True):
     """``text`` with every non-printable character but the newline escaped.
 
     Parameters
     ----------
     text : str
         Any text.
+    keep_newline : bool, default=True
+        Whether ``"\\n"`` passes as it is: yes for a whole output, whose
+        lines end with it; no for one value from a file, printed on one line
+        of its own, where a newline would start a line that looks like
+        another field.
 
     Returns
     -------
     text : str
         The same text, each control, format or separator character (but
-        ``"\\n"``) replaced by its escape, e.g. ``"\\x1b"`` by the four
-        characters ``\\x1b``.
+        ``"\\n"`` with ``keep_newline``) replaced by its escape, e.g.
+        ``"\\x1b"`` by the four characters ``\\x1b``.
 
     Examples
     --------
     >>> print(printable("red: \\x1b[31m, reversed: \\u202e"))
     red: \\x1b[31m, reversed: \\u202e
+    >>> print(printable("one\\ntwo", keep_newline=False))
+    one\\ntwo
     """
     if text.isprintable():
         return text
+    kept = "\n" if keep_newline else ""
     return "".join(
-        c if c.isprintable() or c == "\n" else c.encode("unicode_escape").decode("ascii")
+        c if c.isprintable() or c in kept else c.encode("unicode_escape").decode("ascii")
         for c in text
     )
 

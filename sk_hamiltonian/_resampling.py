@@ -19,7 +19,12 @@ n_columns**2`` floats, the resamples' ``n_resamples * n_columns**2``. Where
 either would exceed ``RESAMPLE_ENTRIES``, the trajectories are taken in
 groups whose normal equations fit, each group's added into the resamples' sums
 and dropped, and the resamples in batches whose sums fit; each batch then
-reads the data once more. The answer is the same.
+reads the data once more. The answer is the same. What grows with
+``n_resamples`` without bound, the draws (``n_resamples * n_trajectories``)
+and the refits' coefficients (twice ``n_resamples * n_columns``, as the
+batches are joined), is checked against ``memory_limit`` before the fit
+(:func:`check_resampling`), so that ``n_resamples=10**12`` is refused at
+once instead of failing in numpy.
 """
 
 import warnings
@@ -29,6 +34,7 @@ from sklearn.utils import check_random_state
 from sklearn.utils.parallel import Parallel, delayed
 
 from . import _fit_steps as steps
+from ._memory import FLOAT, SizeLimitError, bytes_text, describe_limit, memory_limit
 
 # Floats (8 bytes each) held at once by the trajectories' normal equations,
 # and again by the resamples' sums: 256 MB each.
@@ -68,8 +74,29 @@ def resample_weights(n_trajectories, n_resamples, kind, random_state):
     return weights
 
 
+def resample_bytes(n_resamples, n_trajectories, n_coefficients):
+    """Bytes that grow with ``n_resamples``: the draws, and the refits' coefficients twice."""
+    return FLOAT * float(n_resamples) * (n_trajectories + 2 * n_coefficients)
+
+
+def largest_resamples(n_trajectories, n_coefficients):
+    """The most resamples whose :func:`resample_bytes` fit ``memory_limit``."""
+    return int(memory_limit() // resample_bytes(1, n_trajectories, n_coefficients))
+
+
+def _coefficients_at_least(estimator, n_states):
+    """Unknowns of a refit, counted without building the space (1 if they cannot be counted yet).
+
+    The space's own checks, which follow, say what is wrong with its parameters.
+    """
+    try:
+        return estimator._n_terms(n_states)
+    except (ValueError, TypeError):
+        return 1
+
+
 def check_resampling(estimator, data):
-    """Refuse a resampling the data cannot give (before any work)."""
+    """Refuse a resampling the data cannot give, or memory cannot hold (before any work)."""
     name = type(estimator).__name__
     if data.trajectories is None:
         raise ValueError(
@@ -85,6 +112,15 @@ def check_resampling(estimator, data):
             f"the data hold {n} trajector{'y' if n == 1 else 'ies'}; resample="
             f"{estimator.resample!r} needs at least {least} (and tens for intervals worth "
             f"reading). Cut a long record into segments, or set n_resamples=0."
+        )
+    coefficients = _coefficients_at_least(estimator, data.states.shape[1])
+    need = resample_bytes(estimator.n_resamples, n, coefficients)
+    if need > memory_limit():
+        raise SizeLimitError(
+            f"{name}: n_resamples={estimator.n_resamples:,} refits would hold about "
+            f"{bytes_text(need)} (each resample's draw of {n:,} trajectories and its "
+            f"{coefficients:,} coefficients), beyond {describe_limit()}. Lower n_resamples: "
+            f"at most {largest_resamples(n, coefficients):,} fit here (sk-hamiltonian uses 100)."
         )
 
 

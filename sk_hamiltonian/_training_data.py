@@ -45,7 +45,7 @@ def training_data(estimator, X, y, sample_weight, reset=True):
         # float64 throughout: one dtype for every fitted array (and model file).
         X, y = validate_data(estimator, X, y, multi_output=True, y_numeric=True, reset=reset,
                              dtype=np.float64)
-        weight = None if sample_weight is None else _check_sample_weight(sample_weight, X)
+        weight = None if sample_weight is None else _checked_weight(sample_weight, X, "state")
         check_magnitude(X, y, type(estimator).__name__)
         return TrainingData(X, y, weight)
     if y is not None:
@@ -69,7 +69,7 @@ def training_data(estimator, X, y, sample_weight, reset=True):
                 f"({len(states)},), when X is the derivative layout; got shape "
                 f"{trajectory_weight.shape}."
             )
-        trajectory_weight = _check_sample_weight(trajectory_weight, states)
+        trajectory_weight = _checked_weight(trajectory_weight, states, "trajectory")
         weight = np.repeat(trajectory_weight, lengths)
     check_magnitude(X2, y2, type(estimator).__name__)
     pieces = np.split(X2, np.cumsum(lengths)[:-1])
@@ -77,6 +77,26 @@ def training_data(estimator, X, y, sample_weight, reset=True):
         X2, y2, weight, trajectories=list(zip(times, pieces)),
         trajectory_weight=trajectory_weight,
     )
+
+
+def _checked_weight(sample_weight, X, unit):
+    """scikit-learn's check of ``sample_weight``, and a message for negative weights.
+
+    A negative weight makes the weighted least squares indefinite: the fit
+    fails in LAPACK ("SVD did not converge") or, with every weight negative,
+    finds no sample left; neither names the argument.
+    """
+    weight = _check_sample_weight(sample_weight, X)
+    negative = np.flatnonzero(weight < 0)
+    if negative.size:
+        first = negative[0]
+        raise ValueError(
+            f"sample_weight must be non-negative (one weight per {unit}; 0 leaves it out); "
+            f"got {weight[first]:g} at index {first}"
+            + (f" and {negative.size - 1} more negative" if negative.size > 1 else "")
+            + ". Drop the sign, or leave those out with 0."
+        )
+    return weight
 
 
 def check_magnitude(states, targets, name="estimator"):

@@ -88,13 +88,17 @@ def check_trajectories(X, *, name="X", min_times=1):
         raise ValueError(f"{name} holds no trajectory; at least one is required.")
     widths = {T.shape[1] for T in trajectories}
     if len(widths) > 1:
-        raise ValueError(
+        transposed = _transposed_hint(name, trajectories, is_array, min_times)
+        raise ValueError(transposed or (
             f"The trajectories in {name} have different numbers of features "
             f"{sorted(widths)}; all must have the same."
-        )
+        ))
     lengths = [T.shape[0] for T in trajectories]
     shortest = int(np.argmin(lengths))
     if lengths[shortest] < min_times:
+        transposed = _transposed_hint(name, trajectories, is_array, min_times)
+        if transposed:
+            raise ValueError(transposed)
         which = f"{name}[{shortest}]" if not is_array else f"Every trajectory in {name}"
         raise ValueError(
             f"{which} has {lengths[shortest]} sample(s); at least {min_times} are required."
@@ -106,6 +110,34 @@ def check_trajectories(X, *, name="X", min_times=1):
                 f"samples first."
             )
     return trajectories, is_array
+
+
+def _transposed_hint(name, trajectories, is_array, min_times):
+    """A one-line message for trajectories given as (n_states, n_times), or None.
+
+    They look so when every one has fewer samples than variables, too few
+    samples for the fit, and as many (even) rows as the others: the time
+    axis is then the long one.
+    """
+    rows = {T.shape[0] for T in trajectories}
+    n_rows, n_columns = trajectories[0].shape
+    if not (len(rows) == 1 and n_rows % 2 == 0 and n_rows < min_times
+            and all(T.shape[1] >= max(min_times, n_rows + 1) for T in trajectories)):
+        return None
+    if is_array:
+        n = len(trajectories)
+        return (
+            f"{name} has shape ({n}, {n_rows}, {n_columns}): {n_rows} samples of {n_columns} "
+            f"variables per trajectory, which looks transposed; trajectories are "
+            f"(n_trajectories, n_times, n_states): pass {name}.transpose(0, 2, 1), of shape "
+            f"({n}, {n_columns}, {n_rows})."
+        )
+    fewest = min(T.shape[1] for T in trajectories)
+    columns = f"{fewest}" if fewest == max(T.shape[1] for T in trajectories) else f"{fewest}+"
+    return (
+        f"Each trajectory in {name} has {n_rows} rows and {columns} columns, which looks "
+        f"transposed; each must be (n_times, n_states): pass [T.T for T in {name}]."
+    )
 
 
 def check_n_states(n_states, name="X"):

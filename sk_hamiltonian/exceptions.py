@@ -75,6 +75,20 @@ class SmoothingWarning(UserWarning):
     """
 
 
+class StateOrderWarning(UserWarning):
+    """The states look ordered ``(q, p)`` rather than ``(p_1..p_d, q_1..q_d)``.
+
+    Raised after a :class:`~sk_hamiltonian.HamiltonianRegressor` fit whose
+    learned ``H~`` curves down in every momentum (its Hessian in ``p``,
+    averaged over the training states, is negative definite), where a
+    kinetic energy grows, and in every position at nearly every state, as a
+    negated kinetic energy does: what data in ``(q, p)`` order give (``-H``
+    with the halves exchanged), and data whose time runs backwards or whose
+    momenta have the wrong sign. Reorder the states (for one degree of
+    freedom, ``X[..., ::-1]``) and fit again.
+    """
+
+
 class OutlierWarning(UserWarning):
     """Some trajectories lie far outside the rest.
 

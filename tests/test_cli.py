@@ -10,6 +10,7 @@ import sys
 import numpy as np
 import pytest
 
+import sk_hamiltonian
 from sk_hamiltonian import load
 from sk_hamiltonian.__main__ import main
 from sk_hamiltonian._cli import fit as cli_fit
@@ -74,6 +75,9 @@ def test_default_example_finds_the_law(demo):
     model = load(out_dir / "model.skh")
     assert model[-1].n_terms_ == 2 and list(model[-1].periodic) == [False, True]
     assert not (out_dir / "model.joblib").exists()  # pickle only on request (--joblib)
+    # The example's own horizon (5 with --quick, 20 without), not ten times the
+    # prepared trajectories' duration (0.4 here), which a data file would get.
+    assert "simulated from u0* = (-3.876, -1.193) up to T = 5 " in out, out
     sp = number(r"SP\s+relative error at T: (\S+)", out)
     non_sp = number(r"non-SP\s+relative error at T: (\S+)", out)
     assert 0 < sp < 1 and non_sp > 0
@@ -302,10 +306,61 @@ def test_help_documents_the_options(capsys):
                    "--seed", "--damping", "--threshold", "--domain", "--version", "--joblib",
                    ".npz", ".csv", "model.skh",
                    "model.joblib",
-                   "runs any code", "report.png", "exit status", "show MODEL",
+                   "runs any code", "report.png", "exit status", "130",
+                   "interrupted (Ctrl-C)", "show MODEL",
                    "simulate MODEL"):
         assert option in out
     assert "--quick" not in out
+
+
+@pytest.mark.parametrize("command", [[], ["show"], ["simulate"]])
+def test_help_names_no_version_but_the_package_s(capsys, command):
+    with pytest.raises(SystemExit):
+        main([*command, "--help"])
+    out = " ".join(capsys.readouterr().out.split())  # argparse wraps lines anywhere
+    # A version the package has not reached says nothing to a reader of 0.1.
+    assert set(re.findall(r"\bversion (\d+(?:\.\d+)*)", out)) <= {sk_hamiltonian.__version__}
+    if not command:
+        assert "--paper-grid" in out and "the command's earlier default" in out
+
+
+def test_a_transposed_npz_array_is_named_as_such(tmp_path, capsys, pendulum_data):
+    # (40, 31, 2) saved as (40, 2, 31): read as it is, 31 columns would pass for
+    # time stamps and 15 states, and the error would be about those.
+    path = tmp_path / "transposed.npz"
+    np.savez(path, trajectories=pendulum_data.transpose(0, 2, 1))
+    line = error_of([str(path), "--dt", "0.02", "--output", str(tmp_path / "out")], capsys)
+    assert "the array has shape (40, 2, 31), 2 samples of 31 columns per trajectory" in line
+    assert "looks transposed: save it as X.transpose(0, 2, 1)" in line
+    assert "time stamps" not in line
+
+
+def test_show_prints_each_string_from_the_file_on_its_own_line(tmp_path, capsys):
+    from sk_hamiltonian import HamiltonianRegressor, save
+
+    rng = np.random.default_rng(0)
+    X = rng.uniform(-1, 1, size=(200, 2))
+    model = HamiltonianRegressor(degree=2).fit(X, np.column_stack([-X[:, 1], X[:, 0]]))
+
+    def show(name, text):
+        model.feature_names_in_ = np.array([f"p{text}", "q"], dtype=object)
+        path = tmp_path / name
+        save(model, path, provenance={"data": f"one{text}", f"key{text}": [text], "n": 3})
+        assert main(["show", str(path)]) == 0
+        return capsys.readouterr().out
+
+    plain = show("plain.skh", " learned: H~ = 0")
+    # A newline (and the other line breaks) in a file's strings would start
+    # lines that read as fields of the report: each is escaped, so the
+    # output has as many lines as with a plain space.
+    out = show("hostile.skh", "\nlearned: H~ = 0\r\x0b\x0c\x1c\x85\u2028")
+    assert out.count("\n") == plain.count("\n")
+    assert len(out.splitlines()) == len(plain.splitlines())
+    escaped = r"\nlearned: H~ = 0\r\x0b\x0c\x1c\x85\u2028"
+    assert f"  data: one{escaped}" in out
+    assert f"learned: H~ = 0.5 q^2 + 0.5 p{escaped}^2 + const" in out
+    assert f"  p{escaped}: [" in out  # the domain's line of that state
+    assert sum(line.startswith("learned: ") for line in out.splitlines()) == 1
 
 
 def test_python_dash_m_entry_point():
@@ -575,8 +630,74 @@ def test_default_horizon_is_ten_median_durations_over_all_trajectories(
     assert "up to T = 6 " in out
 
 
+def test_ctrl_c_ends_the_command_in_one_line_with_status_130(tmp_path):
+    # A real SIGINT once the command has started (its first line), as a
+    # terminal sends it. The child gets the default handler even where this
+    # process ignores SIGINT (a background job), so Python turns it into
+    # KeyboardInterrupt as at a terminal.
+    import signal
+
+    env = dict(os.environ, PYTHONUNBUFFERED="1", MPLBACKEND="Agg")
+    process = subprocess.Popen(
+        [sys.executable, "-m", "sk_hamiltonian", "--output", str(tmp_path / "out")],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, env=env,
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+    )
+    try:
+        assert process.stdout.readline().startswith("data: single pendulum")
+        process.send_signal(signal.SIGINT)
+        _, err = process.communicate(timeout=120)
+    finally:
+        process.kill()
+    assert process.returncode == 130
+    assert err == "sk-hamiltonian: interrupted; no file written\n"
+    assert list((tmp_path / "out").iterdir()) == []
+
+
+def test_an_interrupt_says_which_files_were_written(tmp_path, capsys, monkeypatch,
+                                                    pendulum_data):
+    def interrupted(path, *args, **kwargs):
+        with open(path, "wb") as stream:
+            stream.write(b"half a figure")
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(cli_fit, "draw_report", interrupted)
+    path = tmp_path / "runs.npz"
+    np.savez(path, trajectories=pendulum_data)
+    out_dir = tmp_path / "out"
+    with pytest.raises(SystemExit) as exit_info:
+        main([str(path), "--dt", "0.02", "--output", str(out_dir), "--degrees", "3",
+              "--denoise-degrees", "fd", "--horizon", "1", "--paper-grid", "--no-resample"])
+    err = capsys.readouterr().err
+    assert exit_info.value.code == 130 and "Traceback" not in err
+    # After the search's progress lines (stderr), one line.
+    assert err.splitlines()[-1] == (f"sk-hamiltonian: interrupted; written: "
+                                    f"{out_dir / 'model.skh'}; {out_dir / 'report.png'} may be "
+                                    f"incomplete")
+    assert load(out_dir / "model.skh")[-1].degree == 3  # written whole before the figure
+
+
 # --------------------------------------------------------------------------
 # The model file and the commands that reuse it
+
+
+def test_an_interrupted_simulate_says_which_files_were_written(demo, tmp_path, capsys,
+                                                               monkeypatch):
+    from sk_hamiltonian._cli import model as cli_model
+
+    def interrupted(*args):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(cli_model, "_draw", interrupted)
+    *_, out_dir = demo
+    csv_path = tmp_path / "run.csv"
+    with pytest.raises(SystemExit) as exit_info:
+        main(["simulate", str(out_dir / "model.skh"), "--x0", "0.5", "1", "--t-end", "1",
+              "-o", str(csv_path)])
+    assert exit_info.value.code == 130
+    assert capsys.readouterr().err == (f"sk-hamiltonian: interrupted; written: {csv_path}; "
+                                       f"{tmp_path / 'run.png'} may be incomplete\n")
+    assert csv_path.read_text().startswith("trajectory,t,p,q\n")
 
 
 def test_cli_round_trip_fit_show_simulate(demo, tmp_path, capsys):

@@ -303,3 +303,38 @@ def test_simulate_on_failure_nan_marks_only_the_failed_trajectory(cubic_model):
     assert np.allclose(Y[0], cubic_model.simulate(x0[0], t, max_step=0.1))
     with pytest.raises(ValueError, match="on_failure"):
         cubic_model.simulate(x0[0], t, on_failure="ignore")
+
+
+def test_equations_print_the_learned_formula_and_repr_stays_the_parameters():
+    import re
+
+    from sklearn.exceptions import NotFittedError
+
+    from sk_hamiltonian.datasets import single_pendulum
+    from sk_hamiltonian.inspection import format_hamiltonian
+
+    X = make_trajectories(single_pendulum(), 40, 20, 0.05, noise=0.01, random_state=0)
+    Xt = DerivativeTransformer(dt=0.05).fit_transform(X)
+    model = HamiltonianRegressor(4, periodic=[False, True], momentum_degree=2, threshold=0.03,
+                                 n_resamples=20, random_state=0)
+    with pytest.raises(NotFittedError):
+        model.equations()
+    model.fit(Xt)
+    formula = model.equations()
+    assert formula == format_hamiltonian(model)
+    # The pendulum's law, H = p^2 / 2 - 9.8 cos q, from 1 % noise.
+    found = re.fullmatch(r"H~ = -(\S+) cos\(q\) \+ (\S+) p\^2 \+ const", formula)
+    assert found and abs(float(found.group(1)) - 9.8) < 0.1, formula
+    assert abs(float(found.group(2)) - 0.5) < 0.01, formula
+    assert model.equations(state_names=["P", "Q"]).endswith("cos(Q) + " + found.group(2)
+                                                             + " P^2 + const")
+    assert "(±" in model.equations(intervals=True)
+    assert model.equations(max_terms=1).startswith(
+        "H~ = -" + found.group(1) + " cos(q) + ... (1 smaller term")
+    # scikit-learn's representation, the parameters, fitted or not (and print
+    # shows it, as for any estimator).
+    expected = ("HamiltonianRegressor(degree=4, momentum_degree=2, n_resamples=20, "
+                "periodic=[False, True], random_state=0, threshold=0.03)")
+    assert repr(model) == str(model)
+    assert " ".join(repr(model).split()) == expected  # pprint breaks long lines
+    assert repr(HamiltonianRegressor(degree=4)) == "HamiltonianRegressor(degree=4)"

@@ -6,6 +6,10 @@ must handle it in its own code, with the reason beside it. That takes half a
 minute on two cores (the first snippet's reference solution alone takes most
 of it), so those runs are marked slow (run with ``--runslow``; CI does). In the
 default run the snippets are checked to find the package's names they import.
+
+The numbers the README quotes from runs (the first example's, the command's)
+are measured again by ``benchmarks/readme_numbers.py`` and compared with the
+text, in a slow test too; the default run checks that they can be read.
 """
 
 import os
@@ -22,6 +26,9 @@ ROOT = Path(__file__).resolve().parents[1]
 README = ROOT / "README.md"
 INDEX = ROOT / "docs" / "index.rst"
 CI = ROOT / ".ci" / "run"
+
+sys.path.insert(0, str(ROOT / "benchmarks"))
+import readme_numbers  # noqa: E402
 
 
 def code_blocks(language):
@@ -69,11 +76,17 @@ def test_readme_snippets_find_what_they_import():
         assert not unresolved_imports(block), (i, unresolved_imports(block))
 
 
+@pytest.fixture(scope="module")
+def first_example_printed(tmp_path_factory):
+    # Run once for the two slow tests that read it (the search takes ~20 s).
+    return run_fresh(code_blocks("python")[0], tmp_path_factory.mktemp("first_example"))
+
+
 @pytest.mark.slow
-def test_readme_snippets_run_as_pasted(tmp_path):
+def test_readme_snippets_run_as_pasted(tmp_path, first_example_printed):
     blocks = code_blocks("python")
     assert len(blocks) == 6
-    check_search_example(run_fresh(blocks[0], tmp_path))
+    check_search_example(first_example_printed)
     check_hamiltonian_example(run_fresh(blocks[1], tmp_path))
     printed = run_fresh(blocks[2], tmp_path)
     # The trajectory fit in a pipeline: accepted, the two terms with their
@@ -94,6 +107,48 @@ def test_readme_snippets_run_as_pasted(tmp_path):
     printed = run_fresh(blocks[4], tmp_path)
     assert printed.strip() == "identical predictions: True"
     assert (tmp_path / "oscillator.skh").exists()
+
+
+def test_readme_quotes_its_numbers_where_they_can_be_checked():
+    claims = readme_numbers.readme_claims(README.read_text())
+    # Every run the README quotes, with what the slow test below compares.
+    assert {name: sorted(quoted) for name, quoted in claims.items()} == {
+        "first-example": ["drift", "error", "formula"],
+        "default": ["drift", "error", "formula", "horizon"],
+        "paper-grid": ["Q", "error", "horizon", "n", "terms"],
+    }
+    for name in ("first-example", "default"):
+        assert readme_numbers.formula_terms(claims[name]["formula"]), claims[name]
+
+
+def test_readme_numbers_comparison_finds_a_stale_digit():
+    claims = {"first-example": {"formula": "H~ = -9.795 cos(q) + 0.5007 p^2 + const",
+                                "error": "9.5e-03", "drift": "1.5e-13"}}
+    printed = {"formula": "H~ = -9.7951 cos(q) + 0.5007 p^2 + const",
+               "error": "0.009512", "drift": "3.1e-14"}
+    assert readme_numbers.disagreements(claims, {"first-example": printed}) == []
+    # Two units off in a written digit, a term more, a drift beyond round-off:
+    # each is found.
+    for key, value, expected in [
+        ("formula", "H~ = -9.797 cos(q) + 0.5007 p^2 + const", "coefficient of cos(q)"),
+        ("formula", "H~ = -9.795 cos(q) + 0.5007 p^2 + 0.01 q^2 + const", "terms"),
+        ("error", "0.0097", "error 9.5e-03 quoted"),
+        ("drift", "2e-12", "drift 1.5e-13 quoted"),
+    ]:
+        found = readme_numbers.disagreements(claims, {"first-example": {**printed, key: value}})
+        assert len(found) == 1 and expected in found[0], found
+
+
+@pytest.mark.slow
+def test_readme_numbers_are_what_the_runs_print(tmp_path, first_example_printed):
+    claims = readme_numbers.readme_claims(README.read_text())
+    measured = {"first-example": readme_numbers.read_first_example(first_example_printed)}
+    for name, arguments in readme_numbers.COMMANDS.items():
+        printed, _ = readme_numbers.run_command(arguments, tmp_path)
+        measured[name] = readme_numbers.read_command(printed)
+    found = readme_numbers.disagreements(claims, measured)
+    assert not found, ("README.md's numbers are stale; run python benchmarks/readme_numbers.py "
+                       "and copy what it prints:\n" + "\n".join(found))
 
 
 def test_docs_front_page_shows_the_readme_first_example():

@@ -263,6 +263,31 @@ def test_bad_input_says_what_to_do(pendulum):
         format_hamiltonian(model, intervals="yes")
 
 
+def test_too_many_resamples_are_refused_before_any_work(pendulum, monkeypatch):
+    def never(*args, **kwargs):
+        raise AssertionError("the fit ran")
+
+    monkeypatch.setattr(sk_hamiltonian._base, "solve", never)
+    monkeypatch.setattr(_resampling, "resample_weights", never)
+    for Regressor in (HamiltonianRegressor, VectorFieldRegressor):
+        with pytest.raises(ValueError, match=r"n_resamples=1,000,000,000,000 refits would hold "
+                                             r"about .* TB .*beyond the memory limit.*Lower "
+                                             r"n_resamples: at most [\d,]+ fit here"):
+            Regressor(degree=4, n_resamples=10**12).fit(pendulum)
+
+
+def test_the_largest_resampling_said_to_fit_does(pendulum):
+    # The count the message gives is the boundary: it fits, one more does not
+    # (a limit just above what the fit itself needs, 491 kB, to keep it short).
+    n_terms = HamiltonianRegressor(degree=4, **PENDULUM)._n_terms(2)
+    with sk_hamiltonian.config_context(memory_limit=600_000):
+        largest = _resampling.largest_resamples(len(pendulum), n_terms)
+        with pytest.raises(ValueError, match=f"at most {largest:,} fit here"):
+            resampled(pendulum, n_resamples=largest + 1)
+        assert resampled(pendulum, n_resamples=largest).resampled_coef_.shape[0] == largest
+    assert 100 < largest < 10_000
+
+
 def test_mixed_model_file_round_trip(tmp_path):
     rng = np.random.default_rng(0)
     X = rng.uniform(-2, 2, size=(300, 2))
@@ -309,6 +334,37 @@ def test_command_without_resampling(tmp_path, capsys):
         main(QUICK_ONE + ["--resamples", "-1", "--output", str(tmp_path)])
     assert exit_info.value.code == 2
     assert "--resamples must be 0 (off) or more; got -1" in capsys.readouterr().err
+
+
+def test_command_refuses_too_many_resamples_before_the_search(tmp_path, capsys, monkeypatch):
+    from sk_hamiltonian._cli import fit as cli_fit
+
+    def never(*args):
+        raise AssertionError("the search ran")
+
+    monkeypatch.setattr(cli_fit, "run_search", never)
+    with pytest.raises(SystemExit) as exit_info:
+        main(QUICK_ONE + ["--resamples", str(10**12), "--output", str(tmp_path)])
+    err = capsys.readouterr().err
+    assert exit_info.value.code == 2 and len(err.splitlines()) == 1
+    assert re.match(r"sk-hamiltonian: error: --resamples 1,000,000,000,000: the refits would "
+                    r"hold about .* TB \(each resample's draw of 60 trajectories and its 1 "
+                    r"coefficient\(s\)\), beyond the memory limit of .*; give --resamples "
+                    r"[\d,]+ or fewer \(default 100\), or --no-resample$", err)
+
+
+def test_command_refuses_resamples_the_chosen_model_cannot_hold(tmp_path, capsys):
+    # Enough for one coefficient per refit (the check before the search), too
+    # many for the chosen model's: said after the search, in the same words.
+    limit = 8.0 * 10**6 * (60 + 2 * 1)
+    with sk_hamiltonian.config_context(memory_limit=limit):
+        with pytest.raises(SystemExit) as exit_info:
+            main(QUICK_ONE + ["--resamples", str(10**6), "--output", str(tmp_path)])
+    err = capsys.readouterr().err
+    assert exit_info.value.code == 2 and "Traceback" not in err
+    n_terms = re.search(r"draw of 60 trajectories and its (\d+) coefficient", err)
+    assert n_terms and int(n_terms.group(1)) > 1, err
+    assert err.splitlines()[-1].startswith("sk-hamiltonian: error: --resamples 1,000,000: ")
 
 
 

@@ -3,6 +3,7 @@
 Each test is named after what it protects.
 """
 
+import re
 import warnings
 
 import numpy as np
@@ -126,3 +127,86 @@ def test_pipeline_predict_on_states_points_to_the_regressor():
     with pytest.raises(ValueError, match=r"pipe\[-1\]\.predict\(states\)"):
         pipe.predict(states)
     assert pipe[-1].predict(states).shape == states.shape
+
+
+@pytest.mark.parametrize("make", [
+    lambda X: X.transpose(0, 2, 1),
+    lambda X: [T.T for T in X],
+    lambda X: [X[0].T, X[1, :30].T],
+], ids=["array", "list", "list_of_lengths"])
+@pytest.mark.parametrize("method", ["finite_difference", "polynomial"])
+def test_transposed_trajectories_are_named_as_such_in_one_line(make, method):
+    from sk_hamiltonian.datasets import make_trajectories, single_pendulum
+
+    X = make_trajectories(single_pendulum(), 100, 40, dt=0.01, random_state=0)
+    with pytest.raises(ValueError) as error:
+        DerivativeTransformer(dt=0.01, method=method).fit(make(X))
+    message = str(error.value)
+    assert "looks transposed" in message and "\n" not in message
+    assert "sample(s)" not in message  # not "has 2 sample(s)"
+    if isinstance(make(X), np.ndarray):
+        assert "X has shape (100, 2, 41)" in message
+        assert "pass X.transpose(0, 2, 1), of shape (100, 41, 2)" in message
+    else:
+        assert "pass [T.T for T in X]" in message
+    # The code the message gives turns the input back into trajectories.
+    fix = re.search(r"pass (.*?)(?:, of shape|\.$)", message).group(1)
+    fixed = eval(fix, {"X": make(X)})  # noqa: S307 (the message's own code)
+    DerivativeTransformer(dt=0.01, method=method).fit(fixed)
+
+
+def test_short_trajectories_are_not_called_transposed():
+    # Two samples of two variables: too short, not transposed (the long axis
+    # is neither); the message keeps to the samples.
+    X = np.random.default_rng(0).normal(size=(5, 2, 2))
+    with pytest.raises(ValueError, match=r"has 2 sample\(s\); at least 3") as error:
+        DerivativeTransformer(dt=0.1, method="finite_difference").fit(X)
+    assert "transposed" not in str(error.value)
+
+
+@pytest.mark.parametrize("x0", ["a", ["a", "b"], [[1.0, 2.0], [3.0]], {"p": 1.0}])
+def test_initial_states_that_are_not_numbers_name_x0(pendulum, x0):
+    *_, model = pendulum
+    with pytest.raises(ValueError, match=r"^x0 must be numbers: one initial state of 2 values "
+                                         r"\(p_1\.\.p_d, q_1\.\.q_d\), or several as the rows"):
+        model.simulate(x0, np.linspace(0, 1, 5))
+
+
+@pytest.mark.parametrize("x0", ["a", [[1.0, 2.0], [3.0]]])
+def test_a_systems_initial_states_that_are_not_numbers_name_x0(x0):
+    from sk_hamiltonian.datasets import single_pendulum
+
+    with pytest.raises(ValueError, match=r"^x0 must be numbers: one initial state of 2 values"):
+        single_pendulum().solve(x0, np.linspace(0, 1, 5))
+    with pytest.raises(ValueError, match=r"^t must be a 1-D array of numbers"):
+        single_pendulum().solve([0.1, 0.2], "soon")
+
+
+def test_output_times_that_are_not_numbers_name_t(pendulum):
+    *_, model = pendulum
+    with pytest.raises(ValueError, match=r"^t must be a 1-D array of numbers, the output times; "
+                                         r"got 'soon'\.$"):
+        model.simulate([0.1, 0.2], "soon")
+
+
+@pytest.mark.parametrize("Regressor", [HamiltonianRegressor, VectorFieldRegressor])
+def test_negative_sample_weight_names_the_argument(pendulum, Regressor):
+    X, y, _ = pendulum
+    weight = np.ones(len(X))
+    weight[[3, 7]] = -1.0
+    with pytest.raises(ValueError, match=r"^sample_weight must be non-negative \(one weight per "
+                                         r"state; 0 leaves it out\); got -1 at index 3 and 1 "
+                                         r"more negative\. Drop the sign"):
+        Regressor(degree=3).fit(X, y, sample_weight=weight)
+
+
+def test_negative_trajectory_weight_names_the_argument():
+    from sk_hamiltonian.datasets import make_trajectories, single_pendulum
+
+    X = make_trajectories(single_pendulum(), 20, 40, dt=0.01, random_state=0)
+    pipe = make_pipeline(DerivativeTransformer(dt=0.01), HamiltonianRegressor(degree=4))
+    weight = np.ones(20)
+    weight[5] = -0.5
+    with pytest.raises(ValueError, match=r"^sample_weight must be non-negative \(one weight per "
+                                         r"trajectory; 0 leaves it out\); got -0\.5 at index 5\."):
+        pipe.fit(X, hamiltonianregressor__sample_weight=weight)

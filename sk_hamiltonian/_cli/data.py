@@ -5,23 +5,21 @@ them); records too few to fill the folds are cut into segments for blocked
 cross-validation.
 """
 
-import numpy as np
-
 import warnings
 
+import numpy as np
+
 from .._trajectories import check_trajectories
-from ..exceptions import OutlierWarning
 from ..datasets import PAPER_DT, make_trajectories, single_pendulum
+from ..exceptions import OutlierWarning
 from ..model_selection import segment_trajectories
 from ..model_selection._prepare import MIN_PIECE_SAMPLES, prepare
-from .datafiles import load_trajectories
+from .datafiles import MIN_SAMPLES, load_trajectories
 from .errors import UsageError, check_positive
 from .words import counted
 
 EXAMPLE = dict(n_trajectories=500, n_intervals=40, noise=0.08, horizon=20.0)
 QUICK = dict(n_trajectories=60, n_intervals=40, noise=0.08, horizon=5.0)
-# Fewest samples a trajectory needs for any derivative estimate.
-MIN_SAMPLES = 3
 # Segments of a record too long to cross-validate whole: the paper's
 # trajectory length (one de-noising polynomial each with the default window),
 # shortened so that every fold gets at least two segments.
@@ -36,7 +34,9 @@ class Data:
     ``dt`` is the transformer's step (None with time stamps), ``step`` the
     (median) sampling step; ``groups`` the CV groups of segments (or None);
     ``folds`` the held-out rows of each fold of the default search, once the
-    data are prepared for it (:meth:`use_prepared`).
+    data are prepared for it (:meth:`use_prepared`). ``horizon`` is the
+    report's simulated span: the one given (the built-in example's), or ten
+    times the median duration of the trajectories as they are now.
     """
 
     def __init__(self, X, names, ids, stamped, dt, title, system=None, horizon=None):
@@ -44,9 +44,12 @@ class Data:
         self.dt, self.title, self.system = dt, title, system
         self.groups = self.folds = None
         self.segmented = False
-        self._split(horizon)
+        # Kept apart so that cutting or preparing the data, which re-splits
+        # them, does not replace a given horizon by one from the segments.
+        self._given_horizon = horizon
+        self._split()
 
-    def _split(self, horizon=None):
+    def _split(self):
         if self.stamped:
             self.times = [np.asarray(T)[:, 0] for T in self.X]
             self.states = [np.asarray(T)[:, 1:] for T in self.X]
@@ -56,7 +59,7 @@ class Data:
         steps = np.concatenate([np.diff(t) for t in self.times])
         self.step = self.dt if self.dt is not None else float(np.median(steps))
         # By default, ten times the median duration over all trajectories.
-        self.horizon = horizon or 10.0 * float(np.median([t[-1] - t[0] for t in self.times]))
+        self.horizon = self._given_horizon or 10.0 * float(np.median([t[-1] - t[0] for t in self.times]))
 
     def use_segments(self, segments, ids, groups):
         self.X, self.ids, self.groups = segments, ids, groups
@@ -72,7 +75,7 @@ class Data:
         self.folds = prepared.folds
         self.segmented = prepared.report["segments"] is not None
         self.groups = None
-        self._split(self.horizon)
+        self._split()
 
 
 def load_data(args):

@@ -10,6 +10,8 @@ from .errors import UsageError
 
 #: Header names of a time column (right after ``trajectory`` in a CSV).
 TIME_NAMES = ("t", "time")
+# Fewest samples a trajectory needs for any derivative estimate.
+MIN_SAMPLES = 3
 
 DataFile = namedtuple("DataFile", ["trajectories", "names", "ids", "stamped"])
 DataFile.__doc__ = """Trajectories read from a file.
@@ -108,6 +110,14 @@ def _load_npz(path):
         )
     if not np.issubdtype(X.dtype, np.number):
         raise UsageError(f"{path}: the array is not numeric (dtype {X.dtype})")
+    if X.shape[1] < MIN_SAMPLES and X.shape[2] > X.shape[1] and times is None:
+        # Read as it is, the long axis would pass for columns (an odd count for
+        # time stamps), and the error would be about those.
+        raise UsageError(
+            f"{path}: the array has shape {X.shape}, {X.shape[1]} samples of {X.shape[2]} "
+            f"columns per trajectory, which looks transposed: save it as "
+            f"X.transpose(0, 2, 1), of shape (n_trajectories, n_times, 2d)"
+        )
     X = X.astype(float)
     if times is not None:
         if X.shape[2] % 2:

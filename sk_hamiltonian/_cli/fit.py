@@ -10,6 +10,7 @@ from sklearn.pipeline import make_pipeline
 from .._derivatives import DerivativeTransformer
 from .._integrate import integrate
 from .._integrate.simulation import MAX_STEPS, check_outputs
+from .._memory import SizeLimitError
 from .._vector_field import VectorFieldRegressor
 from ..exceptions import DomainWarning
 from ..inspection import format_hamiltonian
@@ -17,7 +18,8 @@ from ..io import save
 from .data import load_data, prepare_for_search, segment_if_needed
 from .errors import UsageError, check_positive
 from .figure import draw_report
-from .parser import MODEL_FILE, check_options
+from .outputs import OUTPUTS
+from .parser import MODEL_FILE, check_options, check_resamples
 from .report import describe_energy_trend, print_choice, print_drift, print_errors
 from .discovery import run_discovery
 from .resampling import band_or_none, resample_chosen
@@ -33,6 +35,7 @@ def run(args):
         data = segment_if_needed(args, data)
     else:
         data = prepare_for_search(args, data)
+    check_resamples(args.resamples, len(data.X))
     horizon = args.horizon if args.horizon is not None else data.horizon
     check_positive("--horizon", horizon)
     # Before the search: a horizon beyond the simulation limits fails at once.
@@ -44,7 +47,13 @@ def run(args):
     best = result.best
     model = best[-1]
     print_choice(result)
-    resample_time = resample_chosen(args, data, best)
+    try:
+        resample_time = resample_chosen(args, data, best)
+    except SizeLimitError:
+        # The regressor refused the count for the chosen model's size: say
+        # it with the command's option.
+        check_resamples(args.resamples, len(data.X), model._n_terms(len(names)))
+        raise
     refinement = _refine_chosen(result, model, resample_time is not None, names)
     intervals = (resample_time is not None
                  or getattr(model, "coef_covariance_", None) is not None)
@@ -99,8 +108,9 @@ def run(args):
         print_drift(t, model, {"RK4": rk4, "AVF": avf})
 
     model_path = os.path.join(args.output, MODEL_FILE)
-    save(best, model_path,
-         provenance=_provenance(args, data, result, resample_time, refinement))
+    with OUTPUTS.writing(model_path, atomic=True):
+        save(best, model_path,
+             provenance=_provenance(args, data, result, resample_time, refinement))
     print(
         f"\nmodel: {model_path} (a fitted Pipeline; sk-hamiltonian show {model_path}, or "
         f"sk_hamiltonian.load in Python)"
@@ -109,7 +119,8 @@ def run(args):
         import joblib
 
         pickle_path = os.path.join(args.output, "model.joblib")
-        joblib.dump(best, pickle_path)
+        with OUTPUTS.writing(pickle_path):
+            joblib.dump(best, pickle_path)
         print(
             f"model: {pickle_path} (--joblib; a pickle: loading it runs any code it carries, "
             f"so load it only if you trust its source)"
@@ -121,7 +132,7 @@ def run(args):
         return 0
     figure_path = os.path.join(args.output, "report.png")
     observed = (data.times[0] - data.times[0][0], data.states)
-    with warnings.catch_warnings():
+    with warnings.catch_warnings(), OUTPUTS.writing(figure_path):
         warnings.simplefilter("ignore", DomainWarning)
         draw_report(
             figure_path, t, curves, truth, errors, model, rk4, avf, observed, names, data.title,

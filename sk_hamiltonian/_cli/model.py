@@ -7,12 +7,13 @@ import warnings
 
 import numpy as np
 
-from .._io_text import escaping_output
+from .._io_text import escaping_output, printable
 from .._integrate.simulation import check_outputs
 from ..exceptions import DomainWarning, SimulationError
 from ..io import ModelFileError, load, read_manifest
 from .datafiles import default_state_names
 from .errors import UsageError, check_positive
+from .outputs import OUTPUTS
 
 METHODS = ("rk4", "avf", "leapfrog", "yoshida4")
 # Output samples of a simulation when neither --dt nor a training step is known.
@@ -114,6 +115,11 @@ def _names(regressor):
     return default_state_names(n) if n % 2 == 0 else [f"x{i + 1}" for i in range(n)]
 
 
+def _field(value):
+    """A value from the model file on one line: every control character escaped, newlines too."""
+    return printable(str(value), keep_newline=False)
+
+
 def _non_default_params(estimator):
     defaults = type(estimator)().get_params(deep=False)
     shown = []
@@ -134,21 +140,21 @@ def show(argv):
     args = show_parser().parse_args(argv)
     model, manifest = _load(args.model)
     written = manifest.get("written", {})
-    print(f"model file: {args.model}")
+    print(f"model file: {_field(args.model)}")
     print(
-        f"  format {manifest['format_version']}, written by sk_hamiltonian "
-        f"{manifest['package_version']}"
-        + (f" on {written['time']}" if isinstance(written.get("time"), str) else "")
-        + "".join(f", {key} {written[key]}" for key in ("scikit-learn", "numpy")
+        f"  format {_field(manifest['format_version'])}, written by sk_hamiltonian "
+        f"{_field(manifest['package_version'])}"
+        + (f" on {_field(written['time'])}" if isinstance(written.get("time"), str) else "")
+        + "".join(f", {key} {_field(written[key])}" for key in ("scikit-learn", "numpy")
                   if isinstance(written.get(key), str))
     )
     steps = model.steps if hasattr(model, "steps") else [(None, model)]
-    print("estimator: " + " -> ".join(_non_default_params(step) for _, step in steps))
+    print("estimator: " + _field(" -> ".join(_non_default_params(step) for _, step in steps)))
     provenance = manifest.get("provenance") or {}
     if provenance:
         print("provenance:")
         for key, value in provenance.items():
-            print(f"  {key}: {value}")
+            print(f"  {_field(key)}: {_field(value)}")
     regressor = _regressor(model)
     if not hasattr(regressor, "n_features_in_"):
         print("fitted: no (the file holds an unfitted estimator)")
@@ -157,7 +163,7 @@ def show(argv):
         print(f"fitted: {regressor.n_features_in_} state variables, window_ = "
               f"{regressor.window_}")
         return 0
-    names = _names(regressor)
+    names = [_field(name) for name in _names(regressor)]
     if hasattr(regressor, "hamiltonian"):
         from ..inspection import format_hamiltonian, hamiltonian_terms
 
@@ -198,6 +204,10 @@ def show(argv):
                 else list(value)
         elif isinstance(value, float):
             value = f"{value:.6g}"
+        elif isinstance(value, str):
+            value = _field(value)
+        # Numeric arrays keep their rows' line breaks: numbers carry no
+        # control characters, and arrays of strings print their repr.
         print(f"  {key} = {value}")
     print(f"  coef_: shape {regressor.coef_.shape}, powers_: shape {regressor.powers_.shape}")
     return 0
@@ -262,7 +272,8 @@ def simulate(argv):
                                    on_failure="nan")
         except (ValueError, SimulationError) as error:
             raise UsageError(f"cannot simulate: {error}") from None
-    _write_csv(args.output, t, Y, names)
+    with OUTPUTS.writing(args.output):
+        _write_csv(args.output, t, Y, names)
     method = args.method or regressor._default_method()
     print(f"simulated {len(x0)} trajector{'y' if len(x0) == 1 else 'ies'} up to T = {t[-1]:g} "
           f"(output step {dt:g}, method {method}): {args.output}")
@@ -285,7 +296,8 @@ def simulate(argv):
     except ImportError:
         print("figure: skipped, matplotlib is not installed (pip install matplotlib)")
         return 0
-    _draw(figure, t, Y, names, regressor)
+    with OUTPUTS.writing(figure):
+        _draw(figure, t, Y, names, regressor)
     print(f"figure: {figure}")
     return 0
 

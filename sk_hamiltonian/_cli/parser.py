@@ -8,6 +8,8 @@ import argparse
 import math
 
 from .. import __version__
+from .._memory import bytes_text, memory_limit
+from .._resampling import largest_resamples, resample_bytes
 from .data import MIN_SAMPLES, SEGMENT_SAMPLES
 from .errors import UsageError
 from .resampling import DEFAULT_RESAMPLES
@@ -97,7 +99,8 @@ reuse a saved model:
 
 exit status: 0 on success, 2 on a usage or data error (one-line message),
   including a search in which every candidate failed to fit (the message
-  names the reason; e.g. a constant state variable needs --domain).
+  names the reason; e.g. a constant state variable needs --domain); 130
+  when interrupted (Ctrl-C), with one line naming the files written.
 
 examples:
   sk-hamiltonian
@@ -184,7 +187,7 @@ def build_parser():
         "--paper-grid", action="store_true",
         help="the paper's setting: a GridSearchCV over (Q, n) in the polynomial space, "
         "derivative fits, every term kept unless --threshold says otherwise (the command's "
-        "default before version 0.2)",
+        "earlier default, before it searched model spaces, fit targets and thresholds)",
     )
     parser.add_argument(
         "--domain", type=float, nargs=2, action="append", metavar=("LOW", "HIGH"),
@@ -229,6 +232,25 @@ def check_options(args):
     if args.segment_length is not None and args.segment_length < MIN_SAMPLES:
         raise UsageError(
             f"--segment-length must be at least {MIN_SAMPLES} samples; got {args.segment_length}"
+        )
+
+
+def check_resamples(n_resamples, n_trajectories, n_coefficients=1):
+    """Refuse a ``--resamples`` whose refits memory cannot hold.
+
+    Before the search, with one coefficient per refit (the least any model
+    has), so that an absurd count is refused at once; after it, with the
+    chosen model's coefficients.
+    """
+    need = resample_bytes(n_resamples, n_trajectories, n_coefficients)
+    if need > memory_limit():
+        largest = largest_resamples(n_trajectories, n_coefficients)
+        raise UsageError(
+            f"--resamples {n_resamples:,}: the refits would hold about {bytes_text(need)} "
+            f"(each resample's draw of {n_trajectories:,} trajectories and its "
+            f"{n_coefficients:,} coefficient(s)), beyond the memory limit of "
+            f"{bytes_text(memory_limit())}; give --resamples {largest:,} or fewer (default "
+            f"{DEFAULT_RESAMPLES}), or --no-resample"
         )
 
 

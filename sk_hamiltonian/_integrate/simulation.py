@@ -34,9 +34,24 @@ MAX_STEPS = 10**7
 OUTPUT_COPIES = 3
 
 
+def as_numbers(value, name, expected):
+    """``value`` as a float array, or a ValueError naming ``name`` and what it should be.
+
+    NumPy's own errors ("could not convert string to float: 'a'", "setting
+    an array element with a sequence") name neither the argument nor the
+    shape it needs.
+    """
+    try:
+        return np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        shown = repr(value)
+        shown = shown if len(shown) <= 60 else shown[:57] + "..."
+        raise ValueError(f"{name} must be {expected}; got {shown}.") from None
+
+
 def check_time(t):
     """Validate output times: 1-D, finite, strictly increasing."""
-    t = np.asarray(t, dtype=float)
+    t = as_numbers(t, "t", "a 1-D array of numbers, the output times")
     if t.ndim != 1 or t.size < 1:
         raise ValueError(f"t must be a non-empty 1-D array of times; got shape {t.shape}.")
     if not np.isfinite(t).all():
@@ -48,7 +63,9 @@ def check_time(t):
 
 def check_initial_states(x0, n_features):
     """``x0`` as a 2-D float array of finite initial states, and whether it was one state."""
-    x0 = np.asarray(x0, dtype=float)
+    x0 = as_numbers(
+        x0, "x0", f"numbers: one initial state of {n_features} values (p_1..p_d, q_1..q_d), "
+        f"or several as the rows of an array of shape (n_initial, {n_features})")
     single = x0.ndim == 1
     x0 = np.atleast_2d(x0)
     if x0.ndim != 2 or x0.shape[1] != n_features:

@@ -14,6 +14,7 @@ import numbers
 import numpy as np
 
 from .._integrate import RK4, integrate, raise_on_failure
+from .._integrate.simulation import as_numbers
 from .._structure import apply_structure
 
 
@@ -242,14 +243,16 @@ class HamiltonianSystem:
         >>> system.solve(system.initial_state, np.linspace(0, 1, 11)).shape
         (11, 2)
         """
-        t = np.asarray(t, dtype=float)
+        t = as_numbers(t, "t", "a 1-D array of numbers, the output times")
         if t.ndim != 1 or t.shape[0] < 1 or not np.all(np.isfinite(t)):
             raise ValueError(
                 f"t must be a non-empty 1-D array of finite times, got shape {t.shape}."
             )
         if np.any(np.diff(t) <= 0):
             raise ValueError("t must be strictly increasing; sort it and drop repeats.")
-        x0 = np.asarray(x0, dtype=float)
+        x0 = as_numbers(
+            x0, "x0", f"numbers: one initial state of {2 * self.n_dof} values (p_1..p_d, "
+            f"q_1..q_d), or several as the rows of an array of shape (n_states, {2 * self.n_dof})")
         if x0.ndim not in (1, 2) or x0.shape[-1] != 2 * self.n_dof:
             raise ValueError(
                 f"x0 must have shape ({2 * self.n_dof},) or (n_states, {2 * self.n_dof}) "
