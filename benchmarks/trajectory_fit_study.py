@@ -114,7 +114,8 @@ def cramer_rao(name, seed=0):
     """
     from sk_hamiltonian._trajectory_fit import KeptTerms, segmented, split_times
     from sk_hamiltonian._trajectory_fit.noise import noise_weights
-    from sk_hamiltonian._trajectory_fit.solver import _groups, _information, flow
+    from sk_hamiltonian._trajectory_fit.covariance import information as fisher
+    from sk_hamiltonian._trajectory_fit.solver import _groups, flow
 
     cfg = SCENES[name]
     clean = make_trajectories(cfg["system"](), cfg["n"], 40, cfg["dt"], random_state=seed)
@@ -135,8 +136,8 @@ def cramer_rao(name, seed=0):
         g.weigh(noise_weights(noise, run[0], scale, g.mask))
         g.Y = run[0]  # no residual: the information needs only the sensitivities
         runs.append(run)
-    information, _ = _information(terms.model, groups, runs)
-    return dict(zip(names, np.sqrt(np.diag(np.linalg.inv(information))).tolist()))
+    matrix, _ = fisher(terms.model, groups, runs)
+    return dict(zip(names, np.sqrt(np.diag(np.linalg.inv(matrix))).tolist()))
 
 
 def run_cost(repeats):

@@ -7,11 +7,8 @@ import pytest
 
 from sk_hamiltonian.datasets import make_trajectories, single_pendulum
 from sk_hamiltonian.exceptions import OutlierWarning
-from sk_hamiltonian.model_selection._prepare import (
-    MIN_PER_FOLD,
-    find_spikes,
-    prepare,
-)
+from sk_hamiltonian._spikes import find_spikes
+from sk_hamiltonian.model_selection._prepare import MIN_PER_FOLD, prepare
 
 DT = 0.01
 

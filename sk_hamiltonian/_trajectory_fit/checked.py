@@ -32,12 +32,8 @@ from .segments import (
     shooting_segments,
     split_times,
 )
-from .solver import (
-    TrajectoryFitError,
-    fit_initial_states,
-    fit_trajectories,
-    sandwich_covariance,
-)
+from .covariance import sandwich_covariance
+from .solver import TrajectoryFitError, fit_initial_states, fit_trajectories
 from .terms import KeptTerms
 
 # Scores are clustered by trajectory (the segments of one record share it)
@@ -118,7 +114,7 @@ def refine(regressor, trajectories, dt, *, least_squares=None, held_out=None):
         about 1 where the model explains it); ``n_segments``; ``change``
         (the largest relative change of a kept coefficient); ``covariance``,
         that of ``coef_`` (then of ``damping_`` for a damped model), the
-        sandwich of :func:`~.solver.sandwich_covariance` with the scores
+        sandwich of :func:`~.covariance.sandwich_covariance` with the scores
         clustered by trajectory (by segment with fewer than
         :data:`MIN_CLUSTERS` trajectories).
     """

@@ -1,0 +1,64 @@
+"""How precise the fitted parameters are: their information, and the sandwich covariance.
+
+With the initial states of the trajectories profiled out, the information
+about the parameters is the Schur complement of the Gauss-Newton normal
+matrix (:func:`information`); its inverse is the covariance where the noise
+model is right. The sandwich (:func:`sandwich_covariance`) adds each
+cluster's scores, and stays right where the noise model is wrong, as long as
+the clusters (trajectories) are independent.
+"""
+
+import numpy as np
+
+
+def information(model, groups, runs):
+    """The parameters' information matrix and each trajectory's score, initial states profiled out.
+
+    With ``A_k = d r_k / d x0_k`` and ``B_k = d r_k / d theta`` (weighted),
+    the information about ``theta`` once every initial state is fitted is
+    the Schur complement ``S = sum_k B_k^T B_k - B_k^T A_k (A_k^T A_k)^-1
+    A_k^T B_k``, and trajectory ``k``'s score is ``B_k^T r_k - B_k^T A_k
+    (A_k^T A_k)^-1 A_k^T r_k``. ``S^-1`` is the Gauss-Newton covariance where
+    the noise model is right; ``S^-1 (sum_c g_c g_c^T) S^-1`` over clusters
+    ``c`` of scores is the sandwich, right where it is not.
+    """
+    k = runs[0][2].shape[-1]
+    S, scores = np.zeros((k, k)), []
+    for g, (X, SX, ST) in zip(groups, runs):
+        n, n_times, d = g.Y.shape
+        r = g.residuals(model, X).reshape(n, n_times * d)
+        A = (SX * g.W[..., None]).reshape(n, n_times * d, d)
+        B = (ST * g.W[..., None]).reshape(n, n_times * d, k)
+        AA = np.einsum("nri,nrj->nij", A, A)
+        AB = np.einsum("nri,nrj->nij", A, B)
+        AA_inv_AB = np.linalg.solve(AA, AB)
+        S += np.einsum("nri,nrj->ij", B, B) - np.einsum("nji,njk->ik", AB, AA_inv_AB)
+        scores.append(np.einsum("nri,nr->ni", B, r)
+                      - np.einsum("nji,nj->ni", AA_inv_AB, np.einsum("nri,nr->ni", A, r)))
+    return S, scores
+
+
+def sandwich_covariance(information, scores, clusters):
+    """The covariance of the parameters from their information and scores, clustered.
+
+    Parameters
+    ----------
+    information : ndarray of shape (n_params, n_params)
+    scores : ndarray of shape (n_segments, n_params)
+    clusters : ndarray of int of shape (n_segments,)
+        Segments that may share more than the noise (the pieces of one
+        record) share a cluster.
+
+    Returns
+    -------
+    covariance : ndarray of shape (n_params, n_params)
+        ``S^-1 (C / (C - 1)) (sum_c g_c g_c^T) S^-1``, with ``C`` clusters.
+    """
+    labels, index = np.unique(clusters, return_inverse=True)
+    summed = np.zeros((len(labels), scores.shape[1]))
+    np.add.at(summed, index, scores)
+    n = len(labels)
+    meat = summed.T @ summed * (n / max(n - 1, 1))
+    inverse = np.linalg.pinv(information)
+    covariance = inverse @ meat @ inverse
+    return (covariance + covariance.T) / 2
