@@ -92,7 +92,7 @@ def test_copies_of_one_trajectory_are_too_few_and_say_so():
     X = np.repeat(pendulum(n=1), 30, axis=0)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", OutlierWarning)
-        with pytest.raises(ValueError, match="Too few data for 5 folds: 1 trajectories"):
+        with pytest.raises(ValueError, match="Too few data for 5 folds: 1 trajectory of 41 samples"):
             prepare(list(X), DT, 5, None)
 
 

@@ -235,8 +235,8 @@ def _segmented(pieces, origin, n_splits, cv, report):
     n_records = np.unique(origin[:, 0]).size
     if length < MIN_SEGMENT_SAMPLES:
         raise ValueError(
-            f"Too few data for {n_splits} folds: {n_records} trajectories of {total} samples "
-            f"in all. The search holds out whole trajectories, at least {MIN_PER_FOLD} per "
+            f"Too few data for {n_splits} folds: {n_records} "
+            f"{'trajectory' if n_records == 1 else 'trajectories'} of {total} samples in all. The search holds out whole trajectories, at least {MIN_PER_FOLD} per "
             f"fold ({MIN_PER_FOLD * n_splits} in all), or cuts longer records into "
             f"{SEGMENTS_PER_FOLD} segments of at least {MIN_SEGMENT_SAMPLES} samples per fold "
             f"({SEGMENTS_PER_FOLD * n_splits * MIN_SEGMENT_SAMPLES} samples in all). Give "
