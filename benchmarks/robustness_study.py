@@ -52,6 +52,7 @@ import argparse
 import math
 import os
 import pickle
+import re
 import sys
 import time
 import warnings
@@ -307,58 +308,111 @@ def _load(output, key):
     return pickle.loads(path.read_bytes()) if path.exists() else None
 
 
+def _terms_of(formula):
+    """The terms of a printed formula, as a sorted tuple of their names."""
+    body = formula.replace("H~ = ", "").split(" + const")[0].split(" + ...")[0]
+    return tuple(sorted(part.strip().split(" ", 1)[1] for part in re.split(r" [+-] ", body)))
+
+
+def _rst_table(title, header, rows):
+    """A reStructuredText list table."""
+    lines = [f".. list-table:: {title}", "   :header-rows: 1", ""]
+    for row in [header] + rows:
+        lines.append("   * - " + str(row[0]))
+        lines.extend(f"     - {cell}" for cell in row[1:])
+    return "\n".join(lines) + "\n"
+
+
+def _rows(output, key_prefix, seeds, method):
+    rows = []
+    for seed in seeds:
+        r = _load(output, (*key_prefix, seed, method))
+        if r is not None and "skipped" not in r:
+            rows.append(r)
+    return rows
+
+
 def report(output):
-    """The page's tables, from the saved rows (reStructuredText list tables)."""
-    lines = []
+    """The page's tables (reStructuredText, ``robustness_tables.rst``) and the losses."""
+    gm = geometric_mean
+    sections, losses = [], []
     for table, (scenes, shapes, noises, seeds, methods) in TABLES.items():
-        lines.append(f"\n{table}: scene, shape, noise | seeds | exact laws | search | "
-                     f"refine=None | worst ratio to refine=None | sindy | sindy-weak | "
-                     f"search s | sindy s")
+        header = ["scene, records, noise", "seeds", "exact law", "search", "refine=None",
+                  "worst search / refine=None", "PySINDy", "PySINDy weak", "CPU s (search)",
+                  "CPU s (PySINDy)"]
+        rows = []
         for name in scenes:
             for shape in shapes:
                 for noise in noises:
-                    rows = {m: [r for s in seeds
-                                if (r := _load(output, (name, shape, noise, s, m))) is not None
-                                and "skipped" not in r] for m in methods}
-                    search = rows["search"]
+                    found = {m: _rows(output, (name, shape, noise), seeds, m) for m in methods}
+                    search = found["search"]
                     if not search:
                         continue
                     exact = sum(bool(r["exact_support"]) for r in search)
-                    worst = max(r["error"] / r["error_least_squares"] for r in search)
-                    line = [f"{name}, {shape}, {noise}", f"{len(search)}",
-                            f"{exact}/{len(search)}",
-                            f"{geometric_mean([r['error'] for r in search]):.3g}",
-                            f"{geometric_mean([r['error_least_squares'] for r in search]):.3g}",
-                            f"{worst:.3g}"]
-                    for m in ("sindy", "sindy-weak"):
-                        line.append(f"{geometric_mean([r['error'] for r in rows[m]]):.3g}"
-                                    if rows.get(m) else "-")
-                    line.append(f"{np.median([r['seconds'] for r in search]):.3g}")
-                    line.append(f"{np.median([r['seconds'] for r in rows['sindy']]):.3g}"
-                                if rows.get("sindy") else "-")
-                    lines.append(" | ".join(line))
-    lines.append("\nfolds: scene, noise | splits | exact laws | distinct laws | errors")
-    for name, noise in FOLD_CASES:
-        rows = [r for split in ["default"] + [str(k) for k in range(1, N_SHUFFLES + 1)]
-                if (r := _load(output, (name, "many", noise, 0, f"search-folds-{split}")))]
+                    errors = [r["error"] for r in search]
+                    unrefined = [r["error_least_squares"] for r in search]
+                    worst = max(e / u for e, u in zip(errors, unrefined))
+                    sindy = {m: gm([r["error"] for r in found[m]]) if found.get(m) else math.nan
+                             for m in ("sindy", "sindy-weak")}
+                    label = f"{name.replace('_', ' ')}, {shape}, {noise}"
+                    rows.append([label, len(search), f"{exact}/{len(search)}",
+                                 f"{gm(errors):.3g}", f"{gm(unrefined):.3g}", f"{worst:.3g}",
+                                 f"{sindy['sindy']:.3g}", f"{sindy['sindy-weak']:.3g}",
+                                 f"{np.median([r['seconds'] for r in search]):.3g}",
+                                 f"{np.median([r['seconds'] for r in found['sindy']]):.3g}"
+                                 if found.get("sindy") else "-"])
+                    if exact < len(search):
+                        losses.append(f"{label}: the exact law on {exact} of {len(search)} seeds")
+                    if worst > 1.25:
+                        losses.append(f"{label}: the refinement worse than refine=None by "
+                                      f"{worst:.3g} on one seed")
+                    best_sindy = min(v for v in sindy.values() if not math.isnan(v)) \
+                        if any(not math.isnan(v) for v in sindy.values()) else math.inf
+                    if gm(errors) > best_sindy:
+                        losses.append(f"{label}: behind PySINDy ({gm(errors):.3g} against "
+                                      f"{best_sindy:.3g})")
         if rows:
-            laws = {r["formula"].split(" + const")[0].count("+") + 1 for r in rows}
-            supports = {frozenset(t.strip() for t in r["formula"].replace("H~ =", "").split("+"))
-                        for r in rows}
-            lines.append(f"{name}, {noise} | {len(rows)} | "
-                         f"{sum(bool(r['exact_support']) for r in rows)}/{len(rows)} | "
-                         f"{len(supports)} | {min(r['error'] for r in rows):.3g}-"
-                         f"{max(r['error'] for r in rows):.3g} (terms {sorted(laws)})")
-    lines.append("\nspikes: seed | exact | error with spikes | without | ratio | named = spiked")
+            sections.append(_rst_table(f"{table}: errors at T = 20 (geometric means over the "
+                                       f"seeds)", header, rows))
+    rows = []
+    for name, noise in FOLD_CASES:
+        found = [r for split in ["default"] + [str(k) for k in range(1, N_SHUFFLES + 1)]
+                 if (r := _load(output, (name, "many", noise, 0, f"search-folds-{split}")))]
+        if found:
+            laws = {_terms_of(r["formula"]) for r in found}
+            exact = sum(bool(r["exact_support"]) for r in found)
+            rows.append([f"{name.replace('_', ' ')}, {noise}", len(found), f"{exact}/{len(found)}",
+                         len(laws),
+                         f"{min(r['error'] for r in found):.3g} - {max(r['error'] for r in found):.3g}"])
+            if exact < len(found):
+                losses.append(f"{name}, {noise}: the exact law on {exact} of {len(found)} fold "
+                              f"splits")
+    if rows:
+        sections.append(_rst_table(
+            "fold splits: the default folds and ten shuffled 5-folds of one dataset",
+            ["scene, noise", "splits", "exact law", "distinct sets of terms",
+             "errors at T = 20"],
+            rows))
+    rows = []
     for seed in range(5):
         a = _load(output, ("pendulum", "many", "add2", seed, "spikes"))
         b = _load(output, ("pendulum", "many", "add2", seed, "no-spikes"))
         if a and b:
-            lines.append(f"{seed} | {a['exact_support']} | {a['error']:.3g} | {b['error']:.3g} | "
-                         f"{a['error'] / b['error']:.3g} | {a['named'] == a['spiked']}")
-    text = "\n".join(lines)
+            rows.append([seed, a["exact_support"], f"{a['error']:.3g}", f"{b['error']:.3g}",
+                         f"{a['error'] / b['error']:.3g}",
+                         "yes" if a["named"] == a["spiked"] else "no"])
+            if not a["exact_support"] or a["error"] > 1.5 * b["error"]:
+                losses.append(f"spikes, seed {seed}: exact {a['exact_support']}, "
+                              f"{a['error'] / b['error']:.3g} times the error without them")
+    if rows:
+        sections.append(_rst_table(
+            "spikes: the pendulum (500 x 41, 2 % additive noise) with 1 % of its samples set "
+            "to 1e6", ["seed", "exact law", "error", "without spikes", "ratio",
+                       "named = spiked trajectories"], rows))
+    text = "\n".join(sections) + "\nLosses:\n\n" + (
+        "\n".join(f"* {loss}" for loss in losses) if losses else "* none") + "\n"
     print(text)
-    (output / "robustness_study.txt").write_text(text + "\n")
+    (output / "robustness_tables.rst").write_text(text)
     return text
 
 
