@@ -216,7 +216,7 @@ def _held_out_check(least_squares, held_out, times, states, bound):
         pair = []
         for theta in (terms.start, result["theta"]):
             with np.errstate(all="ignore"):
-                misfit = fit_initial_states(terms.model, theta, groups, noise)
+                misfit = fit_initial_states(terms.model, theta, groups, noise)[0]
             pair.append(_per_trajectory(misfit, owners, test.size))
         chunks.append(np.column_stack(pair))
     if not chunks:
