@@ -1,10 +1,12 @@
 """Stage 1 of the search: the model spaces, screened on one layout and fit target.
 
 :func:`auto_spaces` offers each position coordinate as a polynomial, an angle
-or both; :func:`screen` fits every space at the smallest degree on one
-derivative layout and fit target, where their held-out equation errors are
-measured against the same targets, and keeps the spaces the data cannot
-reject against the best (:func:`kept_spaces`), the smallest models first.
+or both (beyond :data:`PER_COORDINATE_DOF` degrees of freedom, spaces of
+pairwise couplings, with angles only where :func:`angle_like` finds them);
+:func:`screen` fits every space at the smallest degree on one derivative
+layout and fit target, where their held-out equation errors are measured
+against the same targets, and keeps the spaces the data cannot reject against
+the best (:func:`kept_spaces`), the smallest models first.
 """
 
 import itertools
@@ -16,37 +18,122 @@ from ._degrees import failure_reason, search_unit
 from ._selection import pick_within
 
 FAMILIES = ("polynomial", "periodic", "mixed")
-# Position coordinates searched one by one up to this many degrees of
-# freedom; beyond, all positions share one family (3**d spaces grow fast).
+# Position coordinates searched one by one, in full total-degree spaces, up to
+# this many degrees of freedom. Beyond, 3**d combinations and C(n + 2d, 2d)
+# unknowns per space grow too fast: the spaces couple variables pairwise.
 PER_COORDINATE_DOF = 2
+# Most variables one basis function of an automatic space depends on beyond
+# PER_COORDINATE_DOF: pairwise couplings, C(2d, 2) pairs, as in lattices and
+# chains, where C(n + 2d, 2d) functions would be needed for any coupling.
+AUTO_INTERACTION = 2
+# A position whose observed values span this much of a full turn (2 pi) or
+# more looks like an angle: a wrapped angle spans just under 2 pi, a rotating
+# one more, and a polynomial of low degree cannot follow cos q over a turn.
+ANGLE_SPAN = 0.9 * 2 * np.pi
 # Spaces kept after the screen, at most.
 MAX_SPACES = 3
 
 
-def auto_spaces(n_states):
+def angle_like(states):
+    """Which position coordinates look like angles: their values span nearly a full turn or more.
+
+    Parameters
+    ----------
+    states : array-like of shape (n_samples, n_states) or (n_trajectories, n_times, n_states), or list of 2-D arrays
+        Observed states ``(p_1..p_d, q_1..q_d)``, without time stamps.
+
+    Returns
+    -------
+    angles : ndarray of shape (n_states // 2,) of bool
+        True for each position ``q_i`` whose observed span
+        ``max q_i - min q_i`` is at least :data:`ANGLE_SPAN` (90 % of
+        ``2 pi``), NaN samples aside.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from sk_hamiltonian.model_selection import angle_like
+    >>> t = np.linspace(0, 10, 200)
+    >>> angle_like(np.column_stack([t, 0 * t, np.sin(3 * t) - 2, 2 * t]))
+    array([False,  True])
+    """
+    if isinstance(states, (list, tuple)):
+        states = np.concatenate([np.asarray(T, dtype=float) for T in states])
+    states = np.asarray(states, dtype=float)
+    if states.ndim < 2 or states.shape[-1] % 2 or states.shape[-1] == 0:
+        raise ValueError(
+            f"states must hold an even number of state variables (p, q) in its last axis; "
+            f"got shape {states.shape}. Pass the states without their time stamps.")
+    flat = states.reshape(-1, states.shape[-1])
+    positions = flat[:, flat.shape[1] // 2:]
+    with np.errstate(invalid="ignore"):
+        span = np.nanmax(positions, axis=0) - np.nanmin(positions, axis=0)
+    return np.nan_to_num(span, nan=0.0) >= ANGLE_SPAN
+
+
+def auto_spaces(n_states, angles=None):
     """The model spaces ``spaces="auto"`` searches for data with ``n_states`` variables.
 
-    Each position coordinate is polynomial, periodic (an angle of period
-    ``2 pi``) or mixed (both families); each combination is offered as a
-    general Hamiltonian and as a mechanical one (``momentum_degree=2``).
+    Up to :data:`PER_COORDINATE_DOF` (two) degrees of freedom, each position
+    coordinate is polynomial, periodic (an angle of period ``2 pi``) or mixed
+    (both families); each combination is offered as a general Hamiltonian and
+    as a mechanical one (``momentum_degree=2``): 6 spaces for one degree of
+    freedom, 18 for two.
+
+    Beyond, the spaces couple variables pairwise (``max_interaction=2``),
+    whose size grows like ``d**2`` rather than ``C(n + 2d, 2d)``: a general
+    Hamiltonian, a mechanical one and a separable mechanical one
+    (``H = T(p) + V(q)``). The positions ``angles`` marks are offered as
+    periodic, then as mixed, in a copy of each (all of them alike); the
+    other positions are polynomial.
 
     Parameters
     ----------
     n_states : int
         Number of state variables ``2d``.
+    angles : array-like of shape (n_states // 2,) of bool, default=None
+        Which positions look like angles (:func:`angle_like` of the data);
+        used beyond two degrees of freedom only. None: no position is an
+        angle.
 
     Returns
     -------
     spaces : list of dict
         Parameters of :class:`~sk_hamiltonian.HamiltonianRegressor`.
+
+    Examples
+    --------
+    >>> from sk_hamiltonian.model_selection import auto_spaces
+    >>> len(auto_spaces(2)), len(auto_spaces(4))
+    (6, 18)
+    >>> auto_spaces(6)[1]
+    {'momentum_degree': 2, 'max_interaction': 2}
+    >>> len(auto_spaces(6, angles=[False, True, False]))
+    9
     """
     d = n_states // 2
     if d <= PER_COORDINATE_DOF:
-        choices = list(itertools.product(FAMILIES, repeat=d))
-    else:
-        choices = [(family,) * d for family in FAMILIES]
+        return _per_coordinate_spaces(d)
+    if angles is None:
+        angles = np.zeros(d, dtype=bool)
+    angles = np.asarray(angles)
+    if angles.shape != (d,) or angles.dtype != bool:
+        raise ValueError(
+            f"angles must be an array of {d} booleans, one per position (n_states={n_states}); "
+            f"got {angles!r}. Use angle_like(states) of the data, or None for no angle.")
+    families = [{}]
+    if angles.any():
+        flags = [False] * d + angles.tolist()
+        families += [{"periodic": flags}, {"mixed": flags}]
+    structures = [{}, {"momentum_degree": 2}, {"momentum_degree": 2, "separable": True}]
+    return [{**family, **structure, "max_interaction": AUTO_INTERACTION}
+            for family in families for structure in structures]
+
+
+def _per_coordinate_spaces(d):
+    """Each position polynomial, periodic or mixed, general and mechanical."""
     spaces = []
-    for families in choices:
+    for families in itertools.product(FAMILIES, repeat=d):
         space = {}
         for name in ("periodic", "mixed"):
             flags = [False] * d + [family == name for family in families]

@@ -27,7 +27,7 @@ from ._finalists import choose
 from ._prepare import prepare
 from ._refine import refine_chosen
 from ._results import cv_results, describe_layout, transformer_params
-from ._screen import auto_spaces, screen, screen_layout, screen_target
+from ._screen import angle_like, auto_spaces, screen, screen_layout, screen_target
 from ._selection import SELECTIONS
 
 FIT_TARGETS = ("derivatives", "steps", "simpson", "weak")
@@ -111,9 +111,14 @@ class HamiltonianSearchCV(BaseEstimator):
         Model spaces, as parameters of
         :class:`~sk_hamiltonian.HamiltonianRegressor` (``periodic``,
         ``mixed``, ``momentum_degree``, ``separable``, ``max_interaction``,
-        ``couplings``, ``solver``). ``"auto"`` (:func:`auto_spaces`): each
-        position coordinate polynomial, periodic or mixed, each as a general
-        and as a mechanical Hamiltonian (``momentum_degree=2``).
+        ``couplings``, ``solver``). ``"auto"`` (:func:`auto_spaces`): up to
+        two degrees of freedom, each position coordinate polynomial, periodic
+        or mixed, each as a general and as a mechanical Hamiltonian
+        (``momentum_degree=2``); beyond, pairwise couplings
+        (``max_interaction=2``) in a general, a mechanical and a separable
+        mechanical Hamiltonian, with the positions whose observed span is
+        nearly a full turn or more (:func:`angle_like`) also offered as
+        periodic and as mixed.
     fit_on : sequence of {"derivatives", "steps", "simpson", "weak"}, default=("derivatives", "steps", "simpson", "weak")
         Fit targets (see :class:`~sk_hamiltonian.HamiltonianRegressor`). The
         steps, Simpson and weak fits use the layout's states: the de-noised
@@ -291,10 +296,14 @@ class HamiltonianSearchCV(BaseEstimator):
         degrees = self._check_values("degrees", self.degrees, integer=True, low=1)
         thresholds = self._check_values("thresholds", self.thresholds, integer=False, low=0)
         fit_on = self._check_fit_on()
-        spaces = auto_spaces(n_states) if self.spaces == "auto" else self._check_spaces()
+        spaces = None if self.spaces == "auto" else self._check_spaces()
         # Stage 0: the data as the folds will see them.
         prepared = prepare(trajectories, self.dt, self.cv, groups)
         X, trajectories, folds = prepared.X, prepared.trajectories, prepared.folds
+        if spaces is None:
+            # Which positions look like angles, once spikes are left out.
+            offset = 1 if self.dt is None else 0
+            spaces = auto_spaces(n_states, angles=angle_like([T[:, offset:] for T in trajectories]))
         if len(folds) < 2:
             raise ValueError(f"cv must give at least 2 folds; got {len(folds)}.")
         if prepared.report["segments"] is not None:
