@@ -6,10 +6,11 @@ import numpy as np
 import pytest
 from sklearn.model_selection import KFold
 
-from sk_hamiltonian import HamiltonianRegressor
+from sk_hamiltonian import HamiltonianRegressor, SmoothingWarning
 from sk_hamiltonian.datasets import HamiltonianSystem, fput_chain, make_trajectories
 from sk_hamiltonian.inspection import hamiltonian_terms
 from sk_hamiltonian.model_selection import HamiltonianSearchCV, angle_like, auto_spaces
+from sk_hamiltonian.model_selection._screen import derivative_layouts, screen_layout
 
 
 def chain_law(n):
@@ -100,14 +101,47 @@ def test_angle_like_looks_at_the_span_of_each_position():
         angle_like(states[:, 1:])
 
 
-def test_the_search_finds_an_fput_chain_of_four_particles():
+@pytest.fixture(scope="module")
+def chain_data():
     chain = fput_chain(4)
-    X = make_trajectories(chain, 100, 40, 0.05, noise=0.01, random_state=0)
+    return chain, make_trajectories(chain, 100, 40, 0.05, noise=0.01, random_state=0)
+
+
+def test_the_screen_passes_over_biased_layouts():
+    denoise = ["finite_difference", 3, 5, 8]
+    assert screen_layout(denoise) == 5
+    assert screen_layout(denoise, {5}) == 8
+    assert screen_layout(denoise, {3, 5, 8}) == "finite_difference"
+    assert screen_layout([3, 5], {3, 5}) == 5
+
+
+def test_derivative_layouts_name_those_whose_polynomials_cannot_follow(chain_data):
+    # Over 41 samples the chain's fast oscillations outrun a cubic.
+    _, X = chain_data
+    with pytest.warns(SmoothingWarning, match="degree=3"):
+        layouts, misfits = derivative_layouts(X, 0.05, ["finite_difference", 3],
+                                              watch_misfit=True)
+    assert misfits == {3}
+    with pytest.warns(SmoothingWarning, match="degree=3"):
+        unwatched, none = derivative_layouts(X, 0.05, ["finite_difference", 3])
+    assert none == set()
+    for key in layouts:
+        np.testing.assert_array_equal(layouts[key], unwatched[key])
+
+
+def test_the_search_finds_an_fput_chain_of_four_particles(chain_data):
+    chain, X = chain_data
     search = HamiltonianSearchCV(
-        dt=0.05, denoise_degrees=["finite_difference"], degrees=[4, 6],
+        dt=0.05, denoise_degrees=["finite_difference", 3], degrees=[4, 6],
         fit_on=["simpson"], refine=None, cv=KFold(3, shuffle=True, random_state=0))
     quiet_fit(search, X)
     assert search.spaces_ == auto_spaces(8)
+    # The cubic's layout is biased: the spaces are screened on finite
+    # differences, and the cubic is searched no further.
+    results = search.cv_results_
+    methods = results["param_derivativetransformer__method"]
+    assert set(methods[results["stage"] == "screen"]) == {"finite_difference"}
+    assert set(methods) == {"finite_difference"}
     model = search.best_estimator_[-1]
     assert {term.text for term in hamiltonian_terms(model)} == chain_law(4)
     states = np.random.default_rng(1).uniform(-1, 1, size=(200, 8))
