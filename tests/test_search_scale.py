@@ -42,9 +42,9 @@ def test_up_to_two_degrees_of_freedom_each_position_is_searched_on_its_own():
 def test_beyond_two_degrees_of_freedom_the_spaces_couple_variables_pairwise(d):
     spaces = auto_spaces(2 * d)
     assert spaces == [
-        {"max_interaction": 2},
-        {"momentum_degree": 2, "max_interaction": 2},
-        {"momentum_degree": 2, "separable": True, "max_interaction": 2},
+        {"max_interaction": 2, "solver": "normal"},
+        {"momentum_degree": 2, "max_interaction": 2, "solver": "normal"},
+        {"momentum_degree": 2, "separable": True, "max_interaction": 2, "solver": "normal"},
     ]
 
 
@@ -90,6 +90,8 @@ def test_angle_like_looks_at_the_span_of_each_position():
     librating = 2.5 * np.sin(np.linspace(0, 20, n))  # swings short of a turn
     rotating = np.linspace(0, 30, n)                  # turns round and round
     states = np.column_stack([p, wrapped, librating, rotating])
+    np.testing.assert_array_equal(angle_like(states), [True, False, True])
+    states[0, 5] = np.nan                             # a missing sample is no span
     np.testing.assert_array_equal(angle_like(states), [True, False, True])
     # Trajectories as a list or a 3-D array: the span over all of them.
     halves = [np.column_stack([p[:, :1], np.full(n, x)]) for x in (-2.5, 2.5)]
