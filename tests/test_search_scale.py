@@ -69,7 +69,8 @@ def test_angles_are_offered_as_periodic_then_mixed_on_those_positions_only():
     assert spaces[:3] == auto_spaces(8)
     assert [s.get("periodic") for s in spaces[3:6]] == [flags] * 3
     assert [s.get("mixed") for s in spaces[6:]] == [flags] * 3
-    assert not any("mixed" in s for s in spaces[3:6]) and not any("periodic" in s for s in spaces[6:])
+    assert not any("mixed" in s for s in spaces[3:6])
+    assert not any("periodic" in s for s in spaces[6:])
     assert {s.get("separable", False) for s in spaces[3:]} == {False, True}
 
 

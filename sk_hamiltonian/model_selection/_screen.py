@@ -43,8 +43,9 @@ def angle_like(states):
 
     Parameters
     ----------
-    states : array-like of shape (n_samples, n_states) or (n_trajectories, n_times, n_states), or list of 2-D arrays
-        Observed states ``(p_1..p_d, q_1..q_d)``, without time stamps.
+    states : array-like of shape (..., n_states) or list of arrays of shape (n_times, n_states)
+        Observed states ``(p_1..p_d, q_1..q_d)``, without time stamps: one
+        array (samples, or trajectories of samples) or one per trajectory.
 
     Returns
     -------

@@ -316,7 +316,8 @@ class HamiltonianSearchCV(BaseEstimator):
         if spaces is None:
             # Which positions look like angles, once spikes are left out.
             offset = 1 if self.dt is None else 0
-            spaces = auto_spaces(n_states, angles=angle_like([T[:, offset:] for T in trajectories]))
+            angles = angle_like([T[:, offset:] for T in trajectories])
+            spaces = auto_spaces(n_states, angles=angles)
         if len(folds) < 2:
             raise ValueError(f"cv must give at least 2 folds; got {len(folds)}.")
         if prepared.report["segments"] is not None:
