@@ -52,8 +52,8 @@ def test_auto_spaces_cover_every_family_of_each_position():
     four = auto_spaces(4)
     assert len(four) == 18
     assert {"periodic": [False, False, True, False], "mixed": [False, False, False, True]} in four
-    # Beyond, the positions share one family.
-    assert len(auto_spaces(6)) == 6
+    # Beyond, pairwise couplings (tests/test_search_scale.py).
+    assert all(space["max_interaction"] == 2 for space in auto_spaces(6))
 
 
 def test_the_search_finds_the_pendulum_law(fitted):

@@ -29,11 +29,13 @@ from ._cv_tools import (
     one_standard_error_rule,
     segment_trajectories,
 )
+from ._screen import angle_like
 from ._search import HamiltonianSearchCV, auto_spaces
 from ._threshold_path import threshold_path
 
 __all__ = [
     "HamiltonianSearchCV",
+    "angle_like",
     "auto_spaces",
     "candidate_table",
     "count_terms",

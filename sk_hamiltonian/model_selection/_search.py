@@ -26,8 +26,16 @@ from ._degrees import failure_reason, search_unit
 from ._finalists import choose
 from ._prepare import prepare
 from ._refine import refine_chosen
-from ._results import cv_results, describe_layout, transformer_params
-from ._screen import auto_spaces, screen, screen_layout, screen_target
+from ._results import cv_results, describe_layout
+from ._screen import (
+    PER_COORDINATE_DOF,
+    angle_like,
+    auto_spaces,
+    derivative_layouts,
+    screen,
+    screen_layout,
+    screen_target,
+)
 from ._selection import SELECTIONS
 
 FIT_TARGETS = ("derivatives", "steps", "simpson", "weak")
@@ -59,7 +67,10 @@ class HamiltonianSearchCV(BaseEstimator):
        differences and the fit targets exact to ``O(dt**4)`` only (Simpson's
        pairs, the weak form).
     1. **Screen** the model spaces (``spaces``) on one reference layout (the
-       middle de-noising degree) and the derivative fit (Simpson's pairs for
+       middle de-noising degree; beyond two degrees of freedom, the middle
+       one of those whose polynomials follow the trajectories, without a
+       :class:`~sk_hamiltonian.SmoothingWarning`, else finite differences)
+       and the derivative fit (Simpson's pairs for
        exact data), at the smallest degree: each candidate's held-out
        *equation error* (the relative residual of the held-out trajectories'
        least-squares rows) ranks spaces, degrees and thresholds against the
@@ -68,7 +79,9 @@ class HamiltonianSearchCV(BaseEstimator):
        rejected only when it is worse by one standard error, unpaired and
        paired over the folds, and by 5 % (the part of an equation error a
        richer model can take from the bias of the estimated derivatives).
-    2. **Search** every layout and fit target in the kept spaces, degree by
+    2. **Search** every layout and fit target in the kept spaces (beyond two
+       degrees of freedom, the layouts passed over by the screen are left
+       out, unless all are), degree by
        degree from the smallest (a degree no better than the best below it
        ends the space's search), at every threshold; within each layout and
        fit target, the candidate with the fewest terms among those the data
@@ -111,9 +124,14 @@ class HamiltonianSearchCV(BaseEstimator):
         Model spaces, as parameters of
         :class:`~sk_hamiltonian.HamiltonianRegressor` (``periodic``,
         ``mixed``, ``momentum_degree``, ``separable``, ``max_interaction``,
-        ``couplings``, ``solver``). ``"auto"`` (:func:`auto_spaces`): each
-        position coordinate polynomial, periodic or mixed, each as a general
-        and as a mechanical Hamiltonian (``momentum_degree=2``).
+        ``couplings``, ``solver``). ``"auto"`` (:func:`auto_spaces`): up to
+        two degrees of freedom, each position coordinate polynomial, periodic
+        or mixed, each as a general and as a mechanical Hamiltonian
+        (``momentum_degree=2``); beyond, pairwise couplings
+        (``max_interaction=2``) in a general, a mechanical and a separable
+        mechanical Hamiltonian, with the positions whose observed span is
+        nearly a full turn or more (:func:`angle_like`) also offered as
+        periodic and as mixed.
     fit_on : sequence of {"derivatives", "steps", "simpson", "weak"}, default=("derivatives", "steps", "simpson", "weak")
         Fit targets (see :class:`~sk_hamiltonian.HamiltonianRegressor`). The
         steps, Simpson and weak fits use the layout's states: the de-noised
@@ -291,10 +309,15 @@ class HamiltonianSearchCV(BaseEstimator):
         degrees = self._check_values("degrees", self.degrees, integer=True, low=1)
         thresholds = self._check_values("thresholds", self.thresholds, integer=False, low=0)
         fit_on = self._check_fit_on()
-        spaces = auto_spaces(n_states) if self.spaces == "auto" else self._check_spaces()
+        spaces = None if self.spaces == "auto" else self._check_spaces()
         # Stage 0: the data as the folds will see them.
         prepared = prepare(trajectories, self.dt, self.cv, groups)
         X, trajectories, folds = prepared.X, prepared.trajectories, prepared.folds
+        if spaces is None:
+            # Which positions look like angles, once spikes are left out.
+            offset = 1 if self.dt is None else 0
+            angles = angle_like([T[:, offset:] for T in trajectories])
+            spaces = auto_spaces(n_states, angles=angles)
         if len(folds) < 2:
             raise ValueError(f"cv must give at least 2 folds; got {len(folds)}.")
         if prepared.report["segments"] is not None:
@@ -307,12 +330,12 @@ class HamiltonianSearchCV(BaseEstimator):
             denoise = [v for v in denoise if v == "finite_difference"] or denoise[:1]
             fit_on = [v for v in fit_on if v in CLEAN_FIT_TARGETS] or fit_on
             self._say(f"clean data: layouts {denoise}, fit targets {fit_on}")
-        layouts = {
-            key: DerivativeTransformer(dt=self.dt, **transformer_params(key)).fit_transform(X)
-            for key in denoise
-        }
+        # Beyond PER_COORDINATE_DOF the screen chooses among nested spaces of
+        # pairwise couplings, where a biased layout keeps the larger ones.
+        layouts, misfits = derivative_layouts(X, self.dt, denoise,
+                                              watch_misfit=n_states // 2 > PER_COORDINATE_DOF)
         # Stage 1: the spaces, on the reference layout and fit target.
-        reference = screen_layout(denoise)
+        reference = screen_layout(denoise, misfits)
         target = screen_target(fit_on, clean)
         self._say(f"screen: {len(spaces)} spaces on {describe_layout(reference)}, {target}, "
                   f"degree {degrees[0]}")
@@ -320,8 +343,14 @@ class HamiltonianSearchCV(BaseEstimator):
                                          thresholds, self.damping, self.domain, reference,
                                          self.n_jobs)
         self._say(f"kept: {[spaces[k] for k in kept]}")
-        # Stage 2: every layout and fit target in the kept spaces, a finalist each.
-        pairs = list(itertools.product(denoise, fit_on))
+        # Stage 2: every layout and fit target in the kept spaces, a finalist each;
+        # beyond PER_COORDINATE_DOF, where each pair costs the most, the
+        # biased layouts are left out, unless all are.
+        searched = [key for key in denoise if key not in misfits] or denoise
+        if len(searched) < len(denoise):
+            self._say(f"biased layouts left out: "
+                      f"{[describe_layout(key) for key in denoise if key in misfits]}")
+        pairs = list(itertools.product(searched, fit_on))
         results = Parallel(n_jobs=self.n_jobs)(
             delayed(search_unit)(layouts[key], folds, [spaces[k] for k in kept], target_,
                                  degrees, thresholds, self.damping, self.domain, key,
