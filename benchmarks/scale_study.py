@@ -1,0 +1,299 @@
+"""The default search on chains of many degrees of freedom, against PySINDy.
+
+For each chain length ``d`` and data seed, the FPU-beta chain with fixed ends
+(:func:`~sk_hamiltonian.datasets.fput_chain`, ``beta = 1``) is sampled as in
+the project issue "Many degrees of freedom": 200 trajectories of 41 samples,
+``dt = 0.05``, 1 % noise, initial states uniform in ``[-1, 1]**(2d)``; 5
+folds of whole trajectories, shuffled by the seed. Two methods see the same
+data and folds:
+
+``search``
+    :class:`~sk_hamiltonian.model_selection.HamiltonianSearchCV` with its
+    defaults (``spaces="auto"``: pairwise couplings beyond two degrees of
+    freedom).
+``sindy``
+    PySINDy 2 cross-validated (``benchmarks/sindy_anchor.py``,
+    :func:`fit_sindy_cv`, strong form) with a polynomial library of degree 3,
+    the library an expert would pick for a quartic potential. Skipped with a
+    note when PySINDy is not importable, or when the training folds have
+    fewer than two samples per function of the library (the search's own
+    rule; from ``d = 16`` on).
+
+Each row runs in a process of its own, BLAS on one thread, so that its CPU
+time and peak memory are its own:
+
+``cpu_s``
+    CPU seconds of the fit (``time.process_time``), the search's refinement
+    and PySINDy's bagged final fit included.
+``peak_mb``, ``base_mb``
+    Peak resident memory of the process (``ru_maxrss``) after the fit, and
+    before it (the data, the imports).
+``exact``
+    The model keeps the law's terms and nothing else: for the search, the
+    chain's monomials (``p_i^2``, ``q_i^2``, ``q_i^4``, and ``q_i q_{i+1}``,
+    ``q_i^3 q_{i+1}``, ``q_i^2 q_{i+1}^2``, ``q_i q_{i+1}^3`` for each bond
+    between particles); for PySINDy, the nonzero coefficients of the true
+    vector field in its library (found by exact least squares on
+    noise-free states).
+``error``
+    The fresh-state error of ``benchmarks/search_study.py``: the median over
+    10 initial states drawn uniformly from the box of the relative state
+    error at ``T = 20``, the truth by RK4 with steps of 1e-3.
+
+Run::
+
+    python benchmarks/scale_study.py                     # d = 2, 4, 8, 16; seeds 0-2
+    python benchmarks/scale_study.py --sizes 2 4 --seeds 0
+    python benchmarks/scale_study.py --methods search
+    python benchmarks/scale_study.py --report            # the table from the saved rows
+    python benchmarks/scale_study.py --quick             # d = 2, 3 on 60 trajectories
+
+Each (d, seed, method) is saved in ``--output`` (default
+``benchmarks/results/scale_study``; ``--quick`` writes to its ``quick``
+folder) as it finishes, and reused by later runs; ``--report`` prints the
+table, the search's CPU time over PySINDy's measured on the same data, and
+writes ``scale_study.csv``.
+"""
+
+import argparse
+import math
+import os
+import pickle
+import subprocess
+import sys
+import time
+import warnings
+from pathlib import Path
+
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
+
+import numpy as np  # noqa: E402
+
+HERE = Path(__file__).resolve().parent
+N_TRAJECTORIES = 200
+N_INTERVALS = 40
+DT = 0.05
+NOISE = 0.01
+FOLDS = 5
+SIZES = (2, 4, 8, 16)
+SEEDS = (0, 1, 2)
+METHODS = ("search", "sindy")
+SINDY_LIBRARY = dict(poly_degree=3)
+QUICK = dict(sizes=(2, 3), seeds=(0,), n_trajectories=60)
+
+
+def chain_law(d):
+    """The monomials of ``H`` of an FPU-beta chain of ``d`` particles with fixed ends."""
+    terms = {f"p{i}^2" for i in range(1, d + 1)} | {f"q{i}^{k}" for i in range(1, d + 1)
+                                                    for k in (2, 4)}
+    for i in range(1, d):
+        a, b = f"q{i}", f"q{i + 1}"
+        terms |= {f"{a}*{b}", f"{a}^3*{b}", f"{a}^2*{b}^2", f"{a}*{b}^3"}
+    return terms
+
+
+def chain_data(d, seed, n_trajectories):
+    from sklearn.model_selection import KFold
+
+    from sk_hamiltonian.datasets import fput_chain, make_trajectories
+
+    system = fput_chain(d, beta=1.0)
+    X = make_trajectories(system, n_trajectories, N_INTERVALS, DT, noise=NOISE,
+                          random_state=seed)
+    return system, X, KFold(FOLDS, shuffle=True, random_state=seed)
+
+
+def peak_mb():
+    import resource
+
+    # ru_maxrss is in kilobytes on Linux.
+    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
+
+
+def run_search(system, X, cv, d, x0, truth):
+    from search_study import model_error
+
+    from sk_hamiltonian.inspection import hamiltonian_terms
+    from sk_hamiltonian.model_selection import HamiltonianSearchCV
+
+    start = time.process_time()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        search = HamiltonianSearchCV(dt=DT, cv=cv).fit(X)
+    seconds = time.process_time() - start
+    model = search.best_estimator_[-1]
+    kept = {term.text for term in hamiltonian_terms(model)}
+    law = chain_law(d)
+    return dict(
+        cpu_s=seconds, wall_s=search.search_time_, exact=kept == law,
+        missing=sorted(law - kept), extra=sorted(kept - law), n_terms=int(model.n_terms_),
+        error=model_error(model, x0, truth, []), params=search.best_params_,
+        kept_spaces=search.kept_spaces_, refinement=search.refinement_["status"],
+        n_candidates=len(search.cv_results_["params"]),
+    )
+
+
+def sindy_exact(anchor, system):
+    """Whether PySINDy's nonzero coefficients are those of the true vector field."""
+    rng = np.random.default_rng(0)
+    n_features = anchor.coef.shape[1]
+    states = rng.uniform(system.domain[:, 0], system.domain[:, 1],
+                         size=(3 * n_features, system.domain.shape[0]))
+    theta = np.asarray(anchor.library.transform(states), dtype=float)
+    coef, *_ = np.linalg.lstsq(theta, system.vector_field(states), rcond=None)
+    truth = np.abs(coef.T) > 1e-8 * np.abs(coef).max()
+    return bool(np.array_equal(anchor.coef != 0, truth))
+
+
+def run_sindy(system, X, cv, seed, x0, truth):
+    from math import comb
+
+    from search_study import T_END, fresh_error
+
+    n_states = X.shape[-1]
+    n_features = comb(n_states + SINDY_LIBRARY["poly_degree"], n_states)
+    n_samples = X.shape[0] * X.shape[1] * (FOLDS - 1) // FOLDS
+    # The search's own rule (two equations per unknown in every fold); each
+    # of PySINDy's regressions has one equation per sample.
+    if 2 * n_features > n_samples:
+        return dict(skipped=f"the library has {n_features} functions, the training folds "
+                            f"{n_samples} samples: fewer than two per function")
+    try:
+        from sindy_anchor import fit_sindy_cv
+    except ImportError as error:
+        return dict(skipped=f"PySINDy anchor not importable ({error})")
+    folds = [test for _, test in cv.split(X)]
+    start = time.process_time()
+    anchor = fit_sindy_cv(X, DT, library=SINDY_LIBRARY, folds=folds, seed=seed)
+    seconds = time.process_time() - start
+    t = np.linspace(0.0, T_END, int(round(T_END / DT)) + 1)
+    return dict(cpu_s=seconds, wall_s=anchor.fit_time, exact=sindy_exact(anchor, system),
+                n_terms=int(anchor.n_terms), params=anchor.params,
+                error=fresh_error(lambda x: anchor.simulate(x, t)[:, -1], x0, truth, []))
+
+
+def run_one(d, seed, method, n_trajectories, path):
+    """One row, in this process: the data, the fit, its measures; saved to ``path``."""
+    from threadpoolctl import threadpool_limits
+
+    sys.path.insert(0, str(HERE))
+    from search_study import fresh_states
+
+    system, X, cv = chain_data(d, seed, n_trajectories)
+    x0, truth = fresh_states(system)
+    base = peak_mb()
+    with threadpool_limits(1):
+        if method == "search":
+            row = run_search(system, X, cv, d, x0, truth)
+        else:
+            row = run_sindy(system, X, cv, seed, x0, truth)
+    row.update(d=d, seed=seed, method=method, base_mb=base, peak_mb=peak_mb(),
+               n_trajectories=n_trajectories)
+    path.write_bytes(pickle.dumps(row))
+
+
+def row_path(output, d, seed, method):
+    return output / f"fput{d}_{seed}_{method}.pkl"
+
+
+def compute(d, seed, method, n_trajectories, output):
+    path = row_path(output, d, seed, method)
+    if path.exists():
+        return pickle.loads(path.read_bytes())
+    started = time.perf_counter()
+    subprocess.run([sys.executable, str(Path(__file__).resolve()), "--one", str(d), str(seed),
+                    method, "--n-trajectories", str(n_trajectories), "--output", str(output)],
+                   check=True)
+    row = pickle.loads(path.read_bytes())
+    shown = {k: row[k] for k in ("cpu_s", "peak_mb", "exact", "n_terms", "error", "skipped")
+             if k in row}
+    print(f"d={d} seed {seed} {method} ({time.perf_counter() - started:.0f} s wall): {shown}",
+          flush=True)
+    return row
+
+
+def geometric_mean(values):
+    values = np.asarray(values, dtype=float)
+    if values.size == 0:
+        return math.nan
+    return float(np.exp(np.mean(np.log(values)))) if np.all(np.isfinite(values)) else math.inf
+
+
+def report(sizes, seeds, output):
+    """Print one line per chain length and method; write the CSV of every row."""
+    import csv
+
+    rows = {}
+    for path in sorted(output.glob("fput*_*.pkl")):
+        row = pickle.loads(path.read_bytes())
+        if row["d"] in sizes and row["seed"] in seeds:
+            rows[row["d"], row["seed"], row["method"]] = row
+    keys = ["d", "method", "seeds", "exact", "n_terms", "error", "cpu_s", "peak_mb",
+            "cpu ratio"]
+    print("  ".join(f"{k:>10s}" for k in keys))
+    for d in sizes:
+        for method in METHODS:
+            done = [rows[d, s, method] for s in seeds if (d, s, method) in rows]
+            skipped = [r for r in done if "skipped" in r]
+            done = [r for r in done if "skipped" not in r]
+            if skipped and not done:
+                print(f"{d:>10d}  {method:>10s}  skipped: {skipped[0]['skipped']}")
+            if not done:
+                continue
+            # The search's CPU time over PySINDy's, on the same data and folds.
+            ratios = [rows[d, r["seed"], "search"]["cpu_s"] / rows[d, r["seed"], "sindy"]["cpu_s"]
+                      for r in done if method == "search"
+                      and "cpu_s" in rows.get((d, r["seed"], "sindy"), {})]
+            line = dict(d=d, method=method, seeds=len(done),
+                        exact=f"{sum(r['exact'] for r in done)}/{len(done)}",
+                        n_terms="/".join(str(r["n_terms"]) for r in done),
+                        error=geometric_mean([r["error"] for r in done]),
+                        cpu_s=float(np.median([r["cpu_s"] for r in done])),
+                        peak_mb=max(r["peak_mb"] for r in done))
+            line["cpu ratio"] = float(np.median(ratios)) if ratios else math.nan
+            print("  ".join(f"{line[k]:>10.4g}" if isinstance(line[k], float)
+                            else f"{line[k]!s:>10s}" for k in keys))
+    fields = ["d", "seed", "method", "n_trajectories", "exact", "n_terms", "error", "cpu_s",
+              "wall_s", "base_mb", "peak_mb", "skipped"]
+    with open(output / "scale_study.csv", "w", newline="") as handle:
+        writer = csv.DictWriter(handle, fieldnames=fields, extrasaction="ignore")
+        writer.writeheader()
+        writer.writerows(rows[key] for key in sorted(rows))
+
+
+def main(argv=None):
+    parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    parser.add_argument("--sizes", nargs="+", type=int, default=list(SIZES),
+                        help="chain lengths d")
+    parser.add_argument("--seeds", nargs="+", type=int, default=list(SEEDS))
+    parser.add_argument("--methods", nargs="+", default=list(METHODS), choices=METHODS)
+    parser.add_argument("--n-trajectories", type=int, default=N_TRAJECTORIES)
+    parser.add_argument("--output", type=Path, default=None)
+    parser.add_argument("--report", action="store_true", help="only print the saved rows")
+    parser.add_argument("--quick", action="store_true",
+                        help=f"d = {QUICK['sizes']}, seed 0, {QUICK['n_trajectories']} "
+                             f"trajectories, in the output's quick folder")
+    parser.add_argument("--one", nargs=3, metavar=("D", "SEED", "METHOD"),
+                        help=argparse.SUPPRESS)
+    args = parser.parse_args(argv)
+    output = args.output or HERE / "results" / "scale_study"
+    if args.quick:
+        args.sizes, args.seeds = list(QUICK["sizes"]), list(QUICK["seeds"])
+        args.n_trajectories = QUICK["n_trajectories"]
+        output = output / "quick"
+    output.mkdir(parents=True, exist_ok=True)
+    if args.one:
+        d, seed, method = int(args.one[0]), int(args.one[1]), args.one[2]
+        run_one(d, seed, method, args.n_trajectories, row_path(output, d, seed, method))
+        return
+    if not args.report:
+        for d in args.sizes:
+            for seed in args.seeds:
+                for method in args.methods:
+                    compute(d, seed, method, args.n_trajectories, output)
+    report(args.sizes, args.seeds, output)
+
+
+if __name__ == "__main__":
+    main()
