@@ -77,7 +77,7 @@ class HamiltonianSearchCV(BaseEstimator):
        same targets. The spaces the data cannot reject against the best are
        kept, the smallest models first (at most three): a candidate is
        rejected only when it is worse by one standard error, unpaired and
-       paired over the folds, and by 5 % (the part of an equation error a
+       paired over the folds, and by 10 % (twice the part of an equation error a
        richer model can take from the bias of the estimated derivatives).
     2. **Search** every layout and fit target in the kept spaces (beyond two
        degrees of freedom, the layouts passed over by the screen are left
