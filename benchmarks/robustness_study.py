@@ -17,7 +17,8 @@ Every case is a scene, a record shape, a noise and a data seed; for each:
     not fill one are left to neither).
 
 Scenes: the paper's pendulum; an anharmonic spring ``p^2/2 + q^2/2 + q^4/4``
-(not in the package's datasets); Henon-Heiles (chaotic above a fraction of
+(:func:`~sk_hamiltonian.datasets.anharmonic_spring`, a scene the search was not
+built on); Henon-Heiles (chaotic above a fraction of
 its escape energy); two pendula coupled by a spring, ``(p1^2 + p2^2)/2 - cos
 q1 - cos q2 + (q1 - q2)^2/4``, whose law is sparse only in the mixed space.
 
@@ -68,7 +69,7 @@ from sklearn.pipeline import Pipeline  # noqa: E402
 
 from sk_hamiltonian import DerivativeTransformer, HamiltonianRegressor  # noqa: E402
 from sk_hamiltonian.datasets import (  # noqa: E402
-    HamiltonianSystem,
+    anharmonic_spring,
     coupled_pendula,
     henon_heiles,
     single_pendulum,
@@ -82,21 +83,6 @@ sys.path.insert(0, str(HERE))
 from search_study import fresh_error  # noqa: E402
 T_END = 20.0
 N_FRESH = 10
-
-
-def anharmonic_spring():
-    """``H = p^2/2 + q^2/2 + q^4/4``: a hardening spring, polynomial and not in the paper."""
-
-    def hamiltonian(X):
-        X = np.asarray(X, dtype=float)
-        return X[..., 0] ** 2 / 2 + X[..., 1] ** 2 / 2 + X[..., 1] ** 4 / 4
-
-    def gradient(X):
-        X = np.asarray(X, dtype=float)
-        return np.stack([X[..., 0], X[..., 1] + X[..., 1] ** 3], axis=-1)
-
-    return HamiltonianSystem("anharmonic_spring", hamiltonian, gradient,
-                             domain=[[-1.5, 1.5], [-1.5, 1.5]], initial_state=[0.3, 1.2])
 
 
 SCENES = {

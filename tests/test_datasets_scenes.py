@@ -380,8 +380,8 @@ def test_scenes_registry():
         "single_pendulum", "exponential", "henon_heiles", "cherry", "double_pendulum"
     }
     assert set(SCENES) == {
-        "coupled_pendula", "damped_pendulum", "double_pendulum_full_circle", "double_well",
-        "fput_chain", "toda_lattice", "torsion_pendulum",
+        "anharmonic_spring", "coupled_pendula", "damped_pendulum",
+        "double_pendulum_full_circle", "double_well", "fput_chain", "toda_lattice", "torsion_pendulum",
     }
     for name, factory in SCENES.items():
         system = factory()

@@ -11,7 +11,7 @@ import pytest
 from sklearn.model_selection import KFold
 
 from sk_hamiltonian import HamiltonianRegressor, DerivativeTransformer
-from sk_hamiltonian.datasets import HamiltonianSystem, make_trajectories, single_pendulum
+from sk_hamiltonian.datasets import anharmonic_spring, make_trajectories, single_pendulum
 from sk_hamiltonian.exceptions import OutlierWarning
 from sk_hamiltonian.inspection import hamiltonian_terms
 from sk_hamiltonian.model_selection import HamiltonianSearchCV
@@ -20,23 +20,10 @@ from sk_hamiltonian.model_selection._refine import refine_on_trajectories
 SPRING_TERMS = ["p^2", "q^2", "q^4"]
 
 
-def spring():
-    def hamiltonian(X):
-        X = np.asarray(X, dtype=float)
-        return X[..., 0] ** 2 / 2 + X[..., 1] ** 2 / 2 + X[..., 1] ** 4 / 4
-
-    def gradient(X):
-        X = np.asarray(X, dtype=float)
-        return np.stack([X[..., 0], X[..., 1] + X[..., 1] ** 3], axis=-1)
-
-    return HamiltonianSystem("spring", hamiltonian, gradient,
-                             domain=[[-1.5, 1.5], [-1.5, 1.5]], initial_state=[0.3, 1.2])
-
-
 def spring_data(noise, n=120, seed=0):
     """Gaussian additive noise, ``noise`` times each variable's root-mean-square."""
     rng = np.random.default_rng(seed)
-    X = spring().solve(rng.uniform(-1.5, 1.5, size=(n, 2)), 0.05 * np.arange(41),
+    X = anharmonic_spring().solve(rng.uniform(-1.5, 1.5, size=(n, 2)), 0.05 * np.arange(41),
                        max_step=0.005)
     rms = np.sqrt(np.mean(X.reshape(-1, 2) ** 2, axis=0))
     return X + noise * rms * rng.standard_normal(X.shape)

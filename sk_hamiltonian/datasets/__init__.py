@@ -2,7 +2,7 @@
 
 from ._chains import fput_chain, toda_lattice
 from ._paper import PAPER_DT, cherry, double_pendulum, exponential, henon_heiles, single_pendulum
-from ._oscillators import double_well
+from ._oscillators import anharmonic_spring, double_well
 from ._pendula import coupled_pendula, damped_pendulum, torsion_pendulum
 from ._system import HamiltonianSystem
 from ._systems import SCENES, SYSTEMS, load_system
@@ -13,6 +13,7 @@ __all__ = [
     "SCENES",
     "SYSTEMS",
     "HamiltonianSystem",
+    "anharmonic_spring",
     "cherry",
     "coupled_pendula",
     "damped_pendulum",

@@ -1,4 +1,4 @@
-"""Oscillators beyond the paper's: a particle in a double well."""
+"""Oscillators beyond the paper's: a particle in a double well, a hardening spring."""
 
 import numbers
 
@@ -47,5 +47,55 @@ def double_well(stiffness=1.0, quartic=1.0):
 
     return HamiltonianSystem(
         "double_well", hamiltonian, gradient, domain=[[-1.5, 1.5], [-2.0, 2.0]],
+        initial_state=[0.3, 1.2], params=dict(stiffness=stiffness, quartic=quartic),
+    )
+
+
+def anharmonic_spring(stiffness=1.0, quartic=1.0):
+    """A hardening spring (an undamped Duffing oscillator with one well), a scene beyond the paper.
+
+    ``H(p, q) = p**2 / 2 + k q**2 / 2 + b q**4 / 4``: three monomials, one
+    well at ``q = 0``, and a period that shortens as the energy grows. Its
+    laws tie closely with periodic series in ``q`` on noisy derivatives,
+    which makes it a test of a search's parsimony.
+
+    Parameters
+    ----------
+    stiffness : float, default=1.0
+        ``k > 0``, the linear stiffness.
+    quartic : float, default=1.0
+        ``b > 0``, the quartic stiffening.
+
+    Returns
+    -------
+    system : HamiltonianSystem
+        Domain ``(-1.5, 1.5) x (-1.5, 1.5)``, ``u0* = (0.3, 1.2)``, no
+        ``paper_settings``.
+
+    See Also
+    --------
+    double_well : The same monomials with a negative stiffness.
+
+    Examples
+    --------
+    >>> from sk_hamiltonian.datasets import anharmonic_spring
+    >>> float(anharmonic_spring().hamiltonian([0.0, 1.0]))
+    0.75
+    """
+    for name, value in (("stiffness", stiffness), ("quartic", quartic)):
+        if not (isinstance(value, numbers.Real) and 0 < value < np.inf):
+            raise ValueError(f"{name} must be a positive finite number, got {value!r}.")
+
+    def hamiltonian(X):
+        X = np.asarray(X, dtype=float)
+        p, q = X[..., 0], X[..., 1]
+        return p**2 / 2 + stiffness * q**2 / 2 + quartic * q**4 / 4
+
+    def gradient(X):
+        p, q = _split(X)
+        return np.concatenate([p, stiffness * q + quartic * q**3], axis=-1)
+
+    return HamiltonianSystem(
+        "anharmonic_spring", hamiltonian, gradient, domain=[[-1.5, 1.5], [-1.5, 1.5]],
         initial_state=[0.3, 1.2], params=dict(stiffness=stiffness, quartic=quartic),
     )

@@ -9,8 +9,8 @@ The systems themselves live in :mod:`._paper` (the paper's examples),
 import functools
 
 from ._chains import fput_chain, toda_lattice
+from ._oscillators import anharmonic_spring, double_well
 from ._paper import cherry, double_pendulum, exponential, henon_heiles, single_pendulum
-from ._oscillators import double_well
 from ._pendula import coupled_pendula, damped_pendulum, torsion_pendulum
 
 
@@ -27,6 +27,7 @@ SYSTEMS = {
 #: Systems beyond the paper's, by name; values are the factories. Each builds
 #: a system of that name.
 SCENES = {
+    "anharmonic_spring": anharmonic_spring,
     "coupled_pendula": coupled_pendula,
     "damped_pendulum": damped_pendulum,
     "double_well": double_well,
@@ -46,7 +47,7 @@ def load_system(name, **params):
         A key of :data:`SYSTEMS`, the paper's systems: ``"single_pendulum"``,
         ``"exponential"``, ``"henon_heiles"``, ``"cherry"`` or
         ``"double_pendulum"``; or of :data:`SCENES`, systems beyond the paper:
-        ``"coupled_pendula"``, ``"damped_pendulum"``,
+        ``"anharmonic_spring"``, ``"coupled_pendula"``, ``"damped_pendulum"``,
         ``"double_pendulum_full_circle"``, ``"double_well"``, ``"fput_chain"``, ``"toda_lattice"``
         or ``"torsion_pendulum"``.
     **params
