@@ -232,8 +232,8 @@ def test_initial_states_alone_are_fitted_with_the_coefficients_fixed(exact):
     times = [DT * np.arange(exact.shape[1])] * len(exact)
     groups, _ = group_by_times(times, list(noisy), 0.01)
     noise = difference_noise_model(list(noisy))
-    right = np.concatenate(fit_initial_states(terms.model, terms.theta0, groups, noise)[0])
-    wrong = np.concatenate(fit_initial_states(terms.model, 1.1 * terms.theta0, groups, noise)[0])
+    right, wrong = (np.concatenate(m) for m in fit_initial_states(
+        terms.model, [terms.theta0, 1.1 * terms.theta0], groups, noise))
     # With the right coefficients each trajectory's misfit is its noise: about
     # one per observation; 10 % off, far more.
     n_obs = exact.shape[1] * exact.shape[2]

@@ -213,12 +213,9 @@ def _held_out_check(least_squares, held_out, times, states, bound):
             groups, owners = segmented(fitted, times, states, test)
         except TrajectoryFitError as error:
             return dict(verdict=str(error), misfit=None, n_trajectories=0)
-        pair = []
-        for theta in (terms.start, result["theta"]):
-            with np.errstate(all="ignore"):
-                misfit = fit_initial_states(terms.model, theta, groups, noise)[0]
-            pair.append(_per_trajectory(misfit, owners, test.size))
-        chunks.append(np.column_stack(pair))
+        with np.errstate(all="ignore"):
+            pair = fit_initial_states(terms.model, [terms.start, result["theta"]], groups, noise)
+        chunks.append(np.column_stack([_per_trajectory(m, owners, test.size) for m in pair]))
     if not chunks:
         return dict(verdict=None, misfit=None, n_trajectories=0)
     misfit = np.concatenate(chunks)

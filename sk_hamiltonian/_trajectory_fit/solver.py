@@ -331,47 +331,53 @@ def fit_trajectories(model, theta, groups, *, bound=None, max_iter=MAX_ITER,
                 states=[run[0] for run in runs], information=matrix, scores=scores)
 
 
-def fit_initial_states(model, theta, groups, noise, *, start=None,
-                       max_iter=HELD_OUT_MAX_ITER):
-    """Each trajectory's misfit under fixed parameters, its initial state fitted.
+def fit_initial_states(model, thetas, groups, noise, *, max_iter=HELD_OUT_MAX_ITER):
+    """Each trajectory's misfit under each of several fixed parameters, its initial state fitted.
 
-    The held-out check of a fit: with ``theta`` fixed, every trajectory's
-    initial state is fitted to its observations by Levenberg-Marquardt
-    iterations of its own (the trajectories are independent: each has its
-    own damping, stops on its own, and only those still moving are
-    simulated), with weights from ``noise`` at the simulated states.
+    The held-out check of a fit: with the parameters fixed, every
+    trajectory's initial state is fitted to its observations by
+    Levenberg-Marquardt iterations of its own (the trajectories are
+    independent: each has its own damping, stops on its own, and only those
+    still moving are simulated). The weights come from ``noise`` at the
+    states simulated under the first parameters, and weigh every later
+    parameter vector's residuals alike, so that the misfits compare; each
+    later fit starts from the initial states fitted under the one before
+    (parameters under comparison are close).
 
     Parameters
     ----------
     model : FlowModel
-    theta : ndarray of shape (n_params,)
+    thetas : array-like of shape (n_thetas, n_params)
+        The parameter vectors to compare.
     groups : list of tuple
         As for :func:`fit_trajectories`.
     noise : ndarray of shape (n_states, 2)
         The variance model of the weights.
-    start : list of ndarray, default=None
-        Initial states to start from, one array per group (e.g. those fitted
-        under nearby parameters); None: the first observations.
     max_iter : int, default=HELD_OUT_MAX_ITER
 
     Returns
     -------
-    misfit : list of ndarray
-        Each trajectory's weighted sum of squared residuals, one array per
-        group; ``inf`` for a trajectory whose simulation is not finite.
-    x0 : list of ndarray
-        The fitted initial states, one array per group.
+    misfits : list of list of ndarray
+        For each parameter vector, each trajectory's weighted sum of squared
+        residuals, one array per group; ``inf`` for a trajectory whose
+        simulation is not finite.
     """
     groups = _groups(groups)
     scale = _observed_scale(groups)
-    start = [None] * len(groups) if start is None else start
-    fitted = [_fit_rows(model, theta, g, noise, scale, max_iter, x0)
-              for g, x0 in zip(groups, start)]
-    return [cost for cost, _ in fitted], [x0 for _, x0 in fitted]
+    misfits, starts = [], [None] * len(groups)
+    for k, theta in enumerate(np.atleast_2d(np.asarray(thetas, dtype=float))):
+        fitted = [_fit_rows(model, theta, g, noise if k == 0 else None, scale, max_iter, x0)
+                  for g, x0 in zip(groups, starts)]
+        misfits.append([cost for cost, _ in fitted])
+        starts = [x0 for _, x0 in fitted]
+    return misfits
 
 
 def _fit_rows(model, theta, g, noise, scale, max_iter, x0=None):
-    """Levenberg-Marquardt over each row's initial state on its own; the rows' misfits and states."""
+    """Levenberg-Marquardt over each row's initial state on its own; the rows' misfits and states.
+
+    ``noise`` None keeps the weights ``g`` already has.
+    """
     n, _, d = g.Y.shape
 
     def run(rows, starts, sensitivities="x0"):
@@ -386,12 +392,19 @@ def _fit_rows(model, theta, g, noise, scale, max_iter, x0=None):
         return X, SX, cost
 
     everyone = np.arange(n)
+    warm = x0 is not None
     x0 = g.Y[:, 0].copy() if x0 is None else np.array(x0, dtype=float)
-    start, _, _ = run(everyone, x0, sensitivities=False)
-    # Weights at the simulated states (as in fit_trajectories), the
-    # observations where a simulation fails.
-    g.weigh(noise_weights(noise, np.where(np.isfinite(start), start, g.Y), scale, g.mask))
+    if noise is not None:
+        start, _, _ = run(everyone, x0, sensitivities=False)
+        # Weights at the simulated states (as in fit_trajectories), the
+        # observations where a simulation fails.
+        g.weigh(noise_weights(noise, np.where(np.isfinite(start), start, g.Y), scale, g.mask))
     X, SX, cost = run(everyone, x0)
+    lost = np.flatnonzero(~np.isfinite(cost))
+    if warm and lost.size:
+        # A state fitted under other parameters may not simulate under these.
+        x0[lost] = g.Y[lost, 0]
+        X[lost], SX[lost], cost[lost] = run(lost, x0[lost])
     lam = np.full(n, 1e-6)
     active = np.isfinite(cost)
     for _ in range(max_iter):
