@@ -102,9 +102,9 @@ class HamiltonianSearchCV(BaseEstimator):
        model, nor than its instability allows), weighted by a noise model
        ``a_i + b_i x_i^2`` per variable (the output-error estimate). The
        result is first checked on data it was not fitted on: with every
-       other fold held out, then the rest, the least-squares pick and its
-       trajectory fit, both fitted on the other folds, are compared on the
-       held-out trajectories; the refinement is kept only where it explains
+       other fold from the second held out (two of five), the least-squares
+       pick and its trajectory fit, both fitted on the other folds, are
+       compared on the held-out trajectories; the refinement is kept only where it explains
        them as well (within 0.5 %) and its fit on all the data converges,
        else the least-squares coefficients stay and ``refinement_`` says why.
 
