@@ -76,8 +76,9 @@ def set_config(kernels=None, memory_limit=None):
         ``ValueError`` naming the sizes and the remedies beyond this limit,
         rather than run for minutes into a ``MemoryError``. ``"auto"`` (the
         initial value): three quarters of the machine's physical memory (or
-        of a container's memory limit, if lower), or 8 GiB where neither can
-        be read. ``numpy.inf`` turns the check off. None leaves the value
+        of a container's memory limit, or of what this process's own
+        address-space limit, ``ulimit -v``, leaves free, if lower), or 8 GiB
+        where none can be read. ``numpy.inf`` turns the check off. None leaves the value
         unchanged.
 
     Raises

@@ -9,7 +9,8 @@ impossible request (``degree=10**6``, or 60 in four variables: 635 375
 unknowns and 9.7 TB) is refused at once, with the sizes and the remedies,
 instead of running for minutes into a bare ``MemoryError``. The limit is
 ``memory_limit`` of :func:`sk_hamiltonian.set_config`: by default three
-quarters of the machine's physical memory.
+quarters of the memory this process may use (the machine's physical memory,
+or a container's limit, or what the process's own ``ulimit -v`` leaves).
 """
 
 import math
@@ -42,16 +43,49 @@ INDEX_BYTES = 4 * FLOAT
 
 
 def physical_memory():
-    """Bytes of memory this process may use: physical memory, or a lower container limit; None if unknown."""
+    """Bytes of memory this process may use; None if unknown.
+
+    The machine's physical memory, or less: a container's limit, or what is
+    left of this process's own limit on its address space or data
+    (``ulimit -v``, ``ulimit -d``) beyond what it has mapped already.
+    """
     total = None
     try:
         total = os.sysconf("SC_PAGE_SIZE") * os.sysconf("SC_PHYS_PAGES")
     except (AttributeError, OSError, ValueError):
         total = _meminfo_total()
-    limit = _cgroup_limit()
-    if limit is not None and (total is None or limit < total):
-        total = limit
+    for limit in (_cgroup_limit(), _process_limit()):
+        if limit is not None and (total is None or limit < total):
+            total = limit
     return total if total and total > 0 else None
+
+
+def _process_limit():
+    """What this process's address-space or data limit leaves free; None where there is none."""
+    try:
+        import resource
+    except ImportError:  # not on Windows
+        return None
+    limits = []
+    for name in ("RLIMIT_AS", "RLIMIT_DATA"):
+        try:
+            soft, _ = resource.getrlimit(getattr(resource, name))
+        except (AttributeError, OSError, ValueError):
+            continue
+        if soft != resource.RLIM_INFINITY and soft > 0:
+            limits.append(soft)
+    if not limits:
+        return None
+    return max(min(limits) - _mapped_bytes(), 0) or None
+
+
+def _mapped_bytes():
+    """The virtual memory this process has mapped (0 where it cannot be read)."""
+    try:
+        with open("/proc/self/statm") as statm:
+            return int(statm.read().split()[0]) * os.sysconf("SC_PAGE_SIZE")
+    except (OSError, ValueError, IndexError, AttributeError):
+        return 0
 
 
 def _meminfo_total():
@@ -93,7 +127,7 @@ def describe_limit():
         return (f"the memory limit of {bytes_text(memory_limit())} set by "
                 f"sk_hamiltonian.set_config(memory_limit=...)")
     total = physical_memory()
-    machine = (f"this machine's {bytes_text(total)}" if total
+    machine = (f"the {bytes_text(total)} this process may use" if total
                else f"an assumed {bytes_text(FALLBACK_MEMORY)}: the machine's could not be read")
     return (f"the memory limit of {bytes_text(memory_limit())} ({AUTO_FRACTION:.0%} of "
             f"{machine}; sk_hamiltonian.set_config(memory_limit=...) changes it)")

@@ -222,3 +222,26 @@ def test_large_but_representable_data_give_the_scaled_model():
     states = X[0]
     np.testing.assert_allclose(models[1].predict(states * scale), models[0].predict(states) * scale,
                                rtol=1e-8, atol=1e-8 * scale)
+
+
+@pytest.mark.skipif(not hasattr(__import__("os"), "fork"), reason="resource limits are POSIX")
+def test_the_memory_limit_follows_the_process_own_address_space_limit():
+    # Under `ulimit -v 4 GiB` on a larger machine the automatic limit is three
+    # quarters of what that cap leaves, not of the machine's memory: a request
+    # beyond it is refused by name before it is allocated.
+    import resource
+    import subprocess
+    import sys
+
+    cap = 4 * 2**30
+    code = ("from sk_hamiltonian._memory import memory_limit, physical_memory; "
+            "print(physical_memory(), memory_limit())")
+
+    def limit():
+        resource.setrlimit(resource.RLIMIT_AS, (cap, cap))
+
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         preexec_fn=limit, check=True).stdout.split()
+    usable, planned = int(out[0]), float(out[1])
+    assert usable < cap
+    assert planned == pytest.approx(0.75 * usable)
