@@ -1092,6 +1092,11 @@ def test_report_figure_against_the_truth_zooms_on_the_end(demo, tmp_path, saved_
     low, high = full.get_ylim()
     assert -15 < low < -5 and 5 < high < 15
     assert full.get_title().endswith("(non-SP runs off the frame)")
+    # In the phase plot the SP model's curve lies over the baseline's, which
+    # would otherwise hide it where they overlap.
+    (phase,) = [ax for ax in fig.axes if ax.get_title().startswith("phase plot")]
+    order = {line.get_label(): line.get_zorder() for line in phase.get_lines()}
+    assert order["SP"] > max(z for label, z in order.items() if label != "SP")
 
 
 @pytest.mark.parametrize("damping,reading", [

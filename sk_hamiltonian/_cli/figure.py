@@ -77,6 +77,11 @@ def draw_report(path, t, curves, truth, errors, model, rk4, avf, observed, names
     everything = np.concatenate(states)
     plot_phase(shown, state_names=names, ax=ax, scatter=everything)
     _widen_truth(ax, "true")
+    # The baseline's curve, drawn after the SP model's, would hide it where
+    # the two overlap: the SP model's goes on top.
+    for line in ax.get_lines():
+        if line.get_label() == "SP":
+            line.set_zorder(max(other.get_zorder() for other in ax.get_lines()) + 1)
     ax.set_title("phase plot (first degree of freedom)")
     _legend_below(ax, ncols=2)
     d = everything.shape[1] // 2  # the phase plot draws p_1 against q_1
