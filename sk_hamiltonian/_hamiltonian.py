@@ -72,7 +72,8 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
     separable : bool, default=False
         ``H~ = T(p) + V(q)``: no basis function mixes momenta and positions.
         Separable models can be simulated with the explicit symplectic
-        methods ``"leapfrog"`` and ``"yoshida4"``.
+        methods ``"leapfrog"`` and ``"yoshida4"``, as can any fit whose kept
+        terms each hold momenta only or positions only.
     max_interaction : int, default=None
         Most state variables one basis function depends on (2: pairwise
         couplings, as in lattices). None: no limit.
@@ -407,7 +408,17 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
 
     def _rebuild_fitted(self):
         super()._rebuild_fitted()
-        self._split = self._separable_parts() if self.separable else None
+        # A fit in a general space whose kept terms each hold momenta only or
+        # positions only (p^2/2 - 9.8 cos q) is separable too: the explicit
+        # symplectic methods can integrate it.
+        self._split = (self._separable_parts()
+                       if self.separable or self._support_is_separable() else None)
+
+    def _support_is_separable(self):
+        d = self.n_features_in_ // 2
+        powers = self.powers_[self.support_]
+        return bool(np.all(~np.any(powers[:, :d] != 0, axis=1)
+                           | ~np.any(powers[:, d:] != 0, axis=1)))
 
     def _separable_parts(self):
         """Spaces and coefficients of ``T(p)`` and ``V(q)`` of a separable model."""

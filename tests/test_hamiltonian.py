@@ -338,3 +338,24 @@ def test_equations_print_the_learned_formula_and_repr_stays_the_parameters():
     assert repr(model) == str(model)
     assert " ".join(repr(model).split()) == expected  # pprint breaks long lines
     assert repr(HamiltonianRegressor(degree=4)) == "HamiltonianRegressor(degree=4)"
+
+
+def test_a_fit_whose_kept_terms_split_into_t_and_v_takes_the_symplectic_methods():
+    # The search fits p^2/2 + V(q) in general or mechanical spaces, never with
+    # separable=True: such a model integrates with leapfrog all the same,
+    # close to RK4 at this step; one whose kept terms mix p and q does not.
+    from sk_hamiltonian import DerivativeTransformer, HamiltonianRegressor
+    from sk_hamiltonian.datasets import single_pendulum
+
+    X = make_trajectories(single_pendulum(), 60, 40, dt=0.01, noise=0.01, random_state=0)
+    Xt = DerivativeTransformer(dt=0.01).fit_transform(X)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        split = HamiltonianRegressor(degree=4, periodic=[False, True], momentum_degree=2,
+                                     threshold=0.03).fit(Xt)
+        mixed = HamiltonianRegressor(degree=4, threshold=0.0).fit(Xt)
+    t = np.arange(0, 5, 0.01)
+    np.testing.assert_allclose(split.simulate([0.5, 1.0], t, method="leapfrog"),
+                               split.simulate([0.5, 1.0], t, method="rk4"), atol=2e-3)
+    with pytest.raises(ValueError, match="a kept term holds both momenta and positions"):
+        mixed.simulate([0.5, 1.0], t, method="leapfrog")

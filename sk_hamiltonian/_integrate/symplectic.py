@@ -31,9 +31,10 @@ class Leapfrog(FixedStepIntegrator):
         if dynamics.kinetic_gradient is None or dynamics.potential_gradient is None:
             raise ValueError(
                 f"method={self.name!r} is an explicit symplectic method for separable "
-                f"Hamiltonians H = T(p) + V(q); this model is not separable (fit "
-                f"HamiltonianRegressor with separable=True), so use method='avf' "
-                f"(energy-conserving) or method='rk4'."
+                f"Hamiltonians H = T(p) + V(q); this model is not separable (a kept "
+                f"term holds both momenta and positions: fit HamiltonianRegressor with "
+                f"separable=True), so use method='avf' (energy-conserving) or "
+                f"method='rk4'."
             )
         if dynamics.damping is not None:
             raise ValueError(
