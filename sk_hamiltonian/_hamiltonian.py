@@ -19,6 +19,7 @@ from ._structure import apply_structure
 from ._trajectories import check_n_states
 from ._warnings import warn
 from .exceptions import ConservationWarning
+from ._inspection.terms import check_state_names
 from .inspection import format_hamiltonian
 
 # A fitted damping is "not backed" by the data when H~ does not fall along
@@ -188,6 +189,14 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
     n_jobs : int, default=None
         Threads solving the resamples' refits; None means 1, -1 every
         core. The results do not depend on it.
+    state_names : list of str, default=None
+        Names of the ``2d`` state variables, momenta first (``["p_theta",
+        "theta"]``), used by every formula and report of the model
+        (:meth:`equations`, :func:`~sk_hamiltonian.inspection.format_hamiltonian`,
+        the command's ``show``) and saved in model files. None: the column
+        names of ``X`` if it had them, else ``p, q`` or ``p1.., q1..``. They
+        do not reorder anything: states are read as ``(p, q)`` whatever
+        they are called.
 
     Attributes
     ----------
@@ -322,13 +331,14 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
         **BaseTrajectoryRegressor._parameter_constraints,
         "fit_on": [StrOptions({"derivatives", "steps", "simpson", "weak", "trajectories"})],
         "damping": ["boolean"],
+        "state_names": ["array-like", None],
     }
 
     def __init__(
         self, degree=3, *, domain=None, periodic=None, mixed=None, momentum_degree=None,
         separable=False, max_interaction=None, couplings=None, fit_on="derivatives",
         threshold=0.0, damping=False, solver="auto", verbose=0, n_resamples=0,
-        resample="bootstrap", random_state=None, n_jobs=None,
+        resample="bootstrap", random_state=None, n_jobs=None, state_names=None,
     ):
         super().__init__(
             degree, domain=domain, periodic=periodic, mixed=mixed,
@@ -339,6 +349,7 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
             n_jobs=n_jobs,
         )
         self.damping = damping
+        self.state_names = state_names
 
     # ------------------------------------------------------------------ fit
     def _check_trajectory_input(self, X, y, sample_weight):
@@ -435,6 +446,7 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
         return parts
 
     def _after_fit(self, data):
+        check_state_names(self.state_names, self.n_features_in_)
         super()._after_fit(data)
         warn_if_order_looks_swapped(self, data.states)
         self.energy_trend_, self.energy_trend_z_ = float("nan"), float("nan")

@@ -6,12 +6,13 @@ import os
 import re
 import subprocess
 import sys
+import warnings
 
 import numpy as np
 import pytest
 
 import sk_hamiltonian
-from sk_hamiltonian import load
+from sk_hamiltonian import DerivativeTransformer, HamiltonianRegressor, load, save
 from sk_hamiltonian.__main__ import main
 from sk_hamiltonian._cli import fit as cli_fit
 from sk_hamiltonian._cli.datafiles import load_trajectories
@@ -761,8 +762,6 @@ def test_simulate_refuses_states_outside_the_domain_unless_asked(demo, tmp_path,
          r"--x0 needs 2 values \(p, q\), one per state variable; got 1"),
         (["--x0", "0", "0", "--t-end", "-1"], "--t-end must be a positive finite number"),
         (["--x0", "0", "0", "--t-end", "1", "--dt", "nan"], "--dt must be a positive finite"),
-        (["--x0", "0", "0", "--t-end", "1", "--method", "leapfrog"],
-         "cannot simulate: .*separable"),
         # Sizes are refused before anything is allocated (issue 32: --t-end 1e9
         # ended in "Unable to allocate 745 GiB").
         (["--x0", "0", "0", "--t-end", "1e9"],
@@ -780,6 +779,24 @@ def test_simulate_usage_errors(demo, tmp_path, capsys, extra, message):
     line = error_of(["simulate", str(out_dir / "model.skh"), *extra, "-o",
                      str(tmp_path / "x.csv")], capsys)
     assert re.search(message, line), line
+
+
+def test_simulate_takes_leapfrog_where_the_kept_terms_split(demo, tmp_path, capsys,
+                                                            pendulum_data):
+    # The built-in example keeps p^2 and cos q: T(p) + V(q), so leapfrog runs;
+    # a model whose kept terms mix p and q is refused, saying why.
+    *_, out_dir = demo
+    argv = ["--x0", "0.5", "1", "--t-end", "1", "--method", "leapfrog", "-o",
+            str(tmp_path / "x.csv")]
+    assert run(["simulate", str(out_dir / "model.skh"), *argv], capsys)[0] == 0
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        Xt = DerivativeTransformer(dt=0.02).fit_transform(pendulum_data)
+        mixed = HamiltonianRegressor(degree=4).fit(Xt)
+    assert np.any(np.all(mixed.powers_[mixed.support_] > 0, axis=1))  # a p^i q^j term
+    save(mixed, tmp_path / "mixed.skh")
+    line = error_of(["simulate", str(tmp_path / "mixed.skh"), *argv], capsys)
+    assert re.search("cannot simulate: .*separable", line), line
 
 
 def test_show_and_simulate_refuse_bad_model_files(tmp_path, capsys):

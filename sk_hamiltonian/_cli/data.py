@@ -9,6 +9,7 @@ import warnings
 
 import numpy as np
 
+from .._inspection.terms import check_state_names
 from .._trajectories import check_trajectories
 from ..datasets import PAPER_DT, make_trajectories, single_pendulum
 from ..exceptions import OutlierWarning
@@ -80,6 +81,16 @@ class Data:
 
 def load_data(args):
     """The data to fit, with their names, title, true system (or None) and horizon."""
+    data = _load_data(args)
+    if getattr(args, "names", None):
+        try:
+            data.names = check_state_names(args.names, len(data.names))
+        except ValueError as error:
+            raise UsageError(f"--names: {error}".replace("state_names ", "")) from None
+    return data
+
+
+def _load_data(args):
     if args.data is None:
         setting = QUICK if args.quick else EXAMPLE
         dt = PAPER_DT if args.dt is None else args.dt

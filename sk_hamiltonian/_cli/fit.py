@@ -107,6 +107,8 @@ def run(args):
         warnings.simplefilter("ignore", DomainWarning)
         print_drift(t, model, {"RK4": rk4, "AVF": avf})
 
+    # The names the report used go with the model: show and load print them.
+    model.set_params(state_names=list(names))
     model_path = os.path.join(args.output, MODEL_FILE)
     with OUTPUTS.writing(model_path, atomic=True):
         save(best, model_path,

@@ -107,7 +107,9 @@ def _regressor(model):
 
 
 def _names(regressor):
-    names = getattr(regressor, "feature_names_in_", None)
+    names = getattr(regressor, "state_names", None)
+    if names is None:
+        names = getattr(regressor, "feature_names_in_", None)
     if names is not None:
         return [str(name) for name in names]
     n = regressor.n_features_in_

@@ -132,6 +132,12 @@ def build_parser():
         "the built-in example uses 0.01 unless given)",
     )
     parser.add_argument(
+        "--names", nargs="+", metavar="NAME",
+        help="names of the state variables, momenta first (e.g. --names L theta): used in "
+        "the formulas, the figure and the model file, instead of a CSV header's or p, q "
+        "(p1.., q1..); they do not reorder the columns",
+    )
+    parser.add_argument(
         "--output", default="sk_hamiltonian_output", metavar="DIR",
         help=f"directory for report.png and {MODEL_FILE} (default: %(default)s)",
     )

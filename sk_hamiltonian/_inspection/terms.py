@@ -58,17 +58,43 @@ def _factor_text(name, power, periodic, omega, mixed=False):
 
 
 def _state_names(model, state_names):
-    """The given names checked, else ``feature_names_in_``, else ``p, q`` or ``p1.., q1..``."""
+    """The given names checked, else the model's ``state_names``, else ``feature_names_in_``,
+    else ``p, q`` or ``p1.., q1..``."""
     n_states = model.n_features_in_
+    if state_names is None:
+        state_names = getattr(model, "state_names", None)
     if state_names is None:
         names = getattr(model, "feature_names_in_", None)
         return list(names) if names is not None else _default_names(n_states)
-    if len(state_names) != n_states:
+    return check_state_names(state_names, n_states)
+
+
+def check_state_names(state_names, n_states):
+    """``state_names`` as a list of distinct non-empty strings, one per state variable.
+
+    None passes through. Raises ``ValueError`` naming the argument and what
+    it needs.
+    """
+    if state_names is None:
+        return None
+    if isinstance(state_names, str):
         raise ValueError(
-            f"state_names must have one name per state variable ({n_states}); got "
-            f"{len(state_names)}."
+            f"state_names must be a list of {n_states} names, one per state variable (momenta "
+            f"first); got the single string {state_names!r}. Pass e.g. "
+            f"{_default_names(n_states)!r}."
         )
-    return list(state_names)
+    names = list(state_names)
+    if len(names) != n_states:
+        raise ValueError(
+            f"state_names must have one name per state variable ({n_states}, momenta "
+            f"first); got {len(names)}."
+        )
+    bad = [name for name in names if not isinstance(name, str) or not name.strip()]
+    if bad:
+        raise ValueError(f"state_names must be non-empty strings; got {bad[0]!r}.")
+    if len(set(names)) != len(names):
+        raise ValueError(f"state_names must be distinct; got {names!r}.")
+    return names
 
 
 def _default_names(n_states):

@@ -21,6 +21,7 @@ from sklearn.utils.validation import check_is_fitted
 
 from .._derivatives import DerivativeTransformer
 from .._hamiltonian import HamiltonianRegressor
+from .._inspection.terms import check_state_names
 from .._trajectories import check_trajectories
 from ._degrees import failure_reason, search_unit
 from ._finalists import choose
@@ -169,6 +170,11 @@ class HamiltonianSearchCV(BaseEstimator):
         Layouts, fit targets and spaces assembled in parallel (joblib).
     verbose : int, default=0
         Print the stages' progress when positive.
+    state_names : list of str, default=None
+        Names of the ``2d`` state variables, momenta first, given to the
+        chosen model (:class:`~sk_hamiltonian.HamiltonianRegressor`'s
+        ``state_names``) for its formulas, reports and model file. None:
+        ``p, q`` or ``p1.., q1..``.
 
     Attributes
     ----------
@@ -261,13 +267,14 @@ class HamiltonianSearchCV(BaseEstimator):
         "cv": ["cv_object"],
         "n_jobs": [Integral, None],
         "verbose": ["verbose"],
+        "state_names": ["array-like", None],
     }
 
     def __init__(
         self, dt=None, *, denoise_degrees=("finite_difference", 3, 5, 8), degrees=(4, 6, 8, 10),
         spaces="auto", fit_on=FIT_TARGETS, thresholds=(0.0, 0.001, 0.01, 0.03, 0.1),
         damping=False, domain=None, refine="trajectories", selection="simplest", cv=5,
-        n_jobs=None, verbose=0,
+        n_jobs=None, verbose=0, state_names=None,
     ):
         self.dt = dt
         self.denoise_degrees = denoise_degrees
@@ -282,6 +289,7 @@ class HamiltonianSearchCV(BaseEstimator):
         self.cv = cv
         self.n_jobs = n_jobs
         self.verbose = verbose
+        self.state_names = state_names
 
     def fit(self, X, y=None, groups=None):
         """Search the candidates on trajectories ``X`` and refit the chosen one on all of them.
@@ -306,6 +314,7 @@ class HamiltonianSearchCV(BaseEstimator):
         start = time.perf_counter()
         trajectories, _ = check_trajectories(X, min_times=3)
         n_states = trajectories[0].shape[1] - (1 if self.dt is None else 0)
+        check_state_names(self.state_names, n_states)
         degrees = self._check_values("degrees", self.degrees, integer=True, low=1)
         thresholds = self._check_values("thresholds", self.thresholds, integer=False, low=0)
         fit_on = self._check_fit_on()
@@ -396,7 +405,7 @@ class HamiltonianSearchCV(BaseEstimator):
         refit_start = time.perf_counter()
         self.best_estimator_ = Pipeline([
             ("derivativetransformer", DerivativeTransformer(dt=self.dt)),
-            ("hamiltonianregressor", HamiltonianRegressor()),
+            ("hamiltonianregressor", HamiltonianRegressor(state_names=self.state_names)),
         ]).set_params(**self.best_params_).fit(X)
         self.refinement_ = dict(status="not asked")
         if self.refine == "trajectories":
