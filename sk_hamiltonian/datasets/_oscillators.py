@@ -32,23 +32,7 @@ def double_well(stiffness=1.0, quartic=1.0):
     >>> float(double_well().hamiltonian([0.0, 1.0]))  # the bottom of a well
     -0.25
     """
-    for name, value in (("stiffness", stiffness), ("quartic", quartic)):
-        if not (isinstance(value, numbers.Real) and 0 < value < np.inf):
-            raise ValueError(f"{name} must be a positive finite number, got {value!r}.")
-
-    def hamiltonian(X):
-        X = np.asarray(X, dtype=float)
-        p, q = X[..., 0], X[..., 1]
-        return p**2 / 2 - stiffness * q**2 / 2 + quartic * q**4 / 4
-
-    def gradient(X):
-        p, q = _split(X)
-        return np.concatenate([p, -stiffness * q + quartic * q**3], axis=-1)
-
-    return HamiltonianSystem(
-        "double_well", hamiltonian, gradient, domain=[[-1.5, 1.5], [-2.0, 2.0]],
-        initial_state=[0.3, 1.2], params=dict(stiffness=stiffness, quartic=quartic),
-    )
+    return _quartic_oscillator("double_well", -1, stiffness, quartic, [[-1.5, 1.5], [-2.0, 2.0]])
 
 
 def anharmonic_spring(stiffness=1.0, quartic=1.0):
@@ -82,20 +66,27 @@ def anharmonic_spring(stiffness=1.0, quartic=1.0):
     >>> float(anharmonic_spring().hamiltonian([0.0, 1.0]))
     0.75
     """
-    for name, value in (("stiffness", stiffness), ("quartic", quartic)):
+    return _quartic_oscillator("anharmonic_spring", 1, stiffness, quartic,
+                               [[-1.5, 1.5], [-1.5, 1.5]])
+
+
+def _quartic_oscillator(name, sign, stiffness, quartic, domain):
+    """``H = p**2 / 2 + sign * a q**2 / 2 + b q**4 / 4``, its parameters checked."""
+    for label, value in (("stiffness", stiffness), ("quartic", quartic)):
         if not (isinstance(value, numbers.Real) and 0 < value < np.inf):
-            raise ValueError(f"{name} must be a positive finite number, got {value!r}.")
+            raise ValueError(f"{label} must be a positive finite number, got {value!r}.")
+    linear = sign * stiffness
 
     def hamiltonian(X):
         X = np.asarray(X, dtype=float)
         p, q = X[..., 0], X[..., 1]
-        return p**2 / 2 + stiffness * q**2 / 2 + quartic * q**4 / 4
+        return p**2 / 2 + linear * q**2 / 2 + quartic * q**4 / 4
 
     def gradient(X):
         p, q = _split(X)
-        return np.concatenate([p, stiffness * q + quartic * q**3], axis=-1)
+        return np.concatenate([p, linear * q + quartic * q**3], axis=-1)
 
     return HamiltonianSystem(
-        "anharmonic_spring", hamiltonian, gradient, domain=[[-1.5, 1.5], [-1.5, 1.5]],
-        initial_state=[0.3, 1.2], params=dict(stiffness=stiffness, quartic=quartic),
+        name, hamiltonian, gradient, domain=domain, initial_state=[0.3, 1.2],
+        params=dict(stiffness=stiffness, quartic=quartic),
     )
