@@ -214,7 +214,7 @@ def resampled_models(model):
 def prediction_band(model, x0, t, *, level=0.9, max_step=None):
     """Where the models the data allow go from ``x0``: the percentile band of their simulations.
 
-    The models are :data:`N_DRAWS` draws of the coefficients from their
+    The models are 100 draws of the coefficients from their
     normal distribution under the trajectory fit (a model fitted with
     ``fit_on="trajectories"``: ``coef_covariance_``, seeded, so the band is
     the same every time), or else the refits of :func:`resampled_models`.

@@ -51,7 +51,7 @@ def angle_like(states):
     -------
     angles : ndarray of shape (n_states // 2,) of bool
         True for each position ``q_i`` whose observed span
-        ``max q_i - min q_i`` is at least :data:`ANGLE_SPAN` (90 % of
+        ``max q_i - min q_i`` is at least ``ANGLE_SPAN`` (90 % of
         ``2 pi``), NaN samples aside.
 
     Examples
@@ -81,7 +81,7 @@ def angle_like(states):
 def auto_spaces(n_states, angles=None):
     """The model spaces ``spaces="auto"`` searches for data with ``n_states`` variables.
 
-    Up to :data:`PER_COORDINATE_DOF` (two) degrees of freedom, each position
+    Up to two degrees of freedom, each position
     coordinate is polynomial, periodic (an angle of period ``2 pi``) or mixed
     (both families); each combination is offered as a general Hamiltonian and
     as a mechanical one (``momentum_degree=2``): 6 spaces for one degree of

@@ -57,7 +57,7 @@ class HamiltonianSearchCV(BaseEstimator):
     The search prepares the data, then runs three stages on the same folds
     and a fourth on all the data:
 
-    0. **Prepare** the data (:mod:`~sk_hamiltonian.model_selection._prepare`):
+    0. **Prepare** the data (``preparation_``):
        samples far from their neighbours (spikes, dropped readings) are left
        out and their trajectories cut there, repeated trajectories left out,
        both named in an :class:`~sk_hamiltonian.OutlierWarning` and in
