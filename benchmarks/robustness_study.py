@@ -442,6 +442,7 @@ def report(output):
             "spikes: the pendulum (500 x 41, 2 % additive noise) with 1 % of its samples set "
             "to 1e6", ["seed", "exact law", "error", "without spikes", "ratio",
                        "named = spiked trajectories"], rows))
+    losses = list(dict.fromkeys(losses))  # a case in two tables is one loss
     text = "\n".join(sections) + "\nLosses:\n\n" + (
         "\n".join(f"* {loss}" for loss in losses) if losses else "* none") + "\n"
     print(text)
