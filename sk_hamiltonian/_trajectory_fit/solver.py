@@ -224,12 +224,13 @@ class _Group:
         """The rows of ``A`` (shaped as ``Y``) at the samples that count, (n_samples, n_states)."""
         return A[self.mask]
 
-    def residuals(self, model, X):
-        return model.wrap_difference(self.Y - X) * self.W
+    def residuals(self, model, X, rows=slice(None)):
+        """Weighted residuals of simulated ``X`` (of the trajectories ``rows``)."""
+        return model.wrap_difference(self.Y[rows] - X) * self.W[rows]
 
-    def misfit(self, model, X):
-        """Each trajectory's weighted sum of squared residuals."""
-        return np.sum(self.residuals(model, X) ** 2, axis=(1, 2))
+    def misfit(self, model, X, rows=slice(None)):
+        """Each trajectory's weighted sum of squared residuals (of the trajectories ``rows``)."""
+        return np.sum(self.residuals(model, X, rows) ** 2, axis=(1, 2))
 
 
 def _groups(groups):
@@ -386,8 +387,7 @@ def _fit_rows(model, theta, g, noise, scale, max_iter, x0=None):
             X, SX, _ = flow(model, theta, starts, steps, sensitivities=sensitivities)
         if SX is None:
             return X, None, None
-        r = model.wrap_difference(g.Y[rows] - X) * g.W[rows]
-        cost = np.sum(r**2, axis=(1, 2))
+        cost = g.misfit(model, X, rows)
         cost[~np.isfinite(cost) | ~np.isfinite(SX).all(axis=(1, 2, 3))] = np.inf
         return X, SX, cost
 
@@ -411,7 +411,7 @@ def _fit_rows(model, theta, g, noise, scale, max_iter, x0=None):
         rows = np.flatnonzero(active)
         if not rows.size:
             break
-        r = (model.wrap_difference(g.Y[rows] - X[rows]) * g.W[rows]).reshape(rows.size, -1)
+        r = g.residuals(model, X[rows], rows).reshape(rows.size, -1)
         A = (SX[rows] * g.W[rows][..., None]).reshape(rows.size, -1, d)
         AA = np.einsum("nri,nrj->nij", A, A)
         AA += lam[rows, None, None] * AA * np.eye(d)
