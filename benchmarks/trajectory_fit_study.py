@@ -7,7 +7,7 @@ Three questions about ``HamiltonianRegressor(fit_on="trajectories")``:
     ``make_pipeline(DerivativeTransformer(dt, degree=Q), HamiltonianRegressor(..., fit_on="trajectories"))``
     in the scene's space, whose fit keeps the true terms; each true term's
     90 % interval (:func:`sk_hamiltonian.inspection.term_intervals`, the
-    trajectory fit's sandwich covariance). Over the seeds: the share of
+    trajectory fit's covariance). Over the seeds: the share of
     intervals that hold the truth (target 85-95 %), the mean bias against the
     mean half-width, and, on the pendulum, the mean standard deviation
     against the Cramer-Rao bound (every initial state unknown, the true

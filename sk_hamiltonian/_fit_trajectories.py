@@ -9,7 +9,7 @@ last stage, checked on every other training trajectory held out, then the
 rest, against the least-squares fit of the other half. Its outcome is set as
 fitted attributes: ``trajectory_fit_status_``, and when it was accepted the
 noise model ``noise_``, each trajectory's misfit in its units
-``trajectory_misfit_`` and the sandwich covariance ``coef_covariance_`` of
+``trajectory_misfit_`` and the covariance ``coef_covariance_`` of
 ``coef_`` (then ``damping_``), from which the intervals of the printed
 coefficients come (:func:`~sk_hamiltonian.inspection.term_intervals`).
 """

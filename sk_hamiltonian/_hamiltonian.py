@@ -275,8 +275,9 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
     coef_covariance_ : ndarray of shape (n_coef, n_coef)
         With ``fit_on="trajectories"``, when refined: the covariance of
         ``coef_`` (then ``damping_``, for a damped model: ``n_coef = n_basis
-        + n_dof``), a sandwich estimate with the trajectories as clusters
-        (robust to a wrong noise model; see :ref:`intervals`). It covers the
+        + n_dof``): a sandwich estimate with the trajectories as clusters
+        (robust to a wrong noise model), each variance at least the
+        model-based one (see :ref:`intervals`). It covers the
         spread of the estimate from sample to sample, not a wrong set of
         terms.
     energy_trend_z_ : float

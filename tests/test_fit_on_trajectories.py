@@ -135,3 +135,27 @@ def test_what_it_cannot_take_is_refused_with_the_fix(noisy):
     with pytest.raises(ValueError, match="does not take sample_weight"):
         HamiltonianRegressor(**SPACE, fit_on="trajectories").fit(
             Xt, sample_weight=np.ones(len(Xt)))
+
+
+def test_each_variance_is_the_larger_of_the_sandwich_and_the_model_based():
+    from sk_hamiltonian._trajectory_fit.covariance import (
+        parameter_covariance, sandwich_covariance)
+
+    rng = np.random.default_rng(0)
+    per_cluster = np.array([[4.0, 1.0], [1.0, 2.0]])
+    information = 400 * per_cluster
+    # Scores whose spread is twice the model's in the first parameter and a
+    # tenth of it in the second: the sandwich is wider, then narrower.
+    scores = rng.standard_normal((400, 2)) @ np.linalg.cholesky(per_cluster).T
+    scores *= [2.0, 0.1]
+    clusters = np.arange(400)
+    sandwich = sandwich_covariance(information, scores, clusters)
+    model_based = np.linalg.inv(information)
+    covariance = parameter_covariance(information, scores, clusters)
+    variances = np.diag(covariance)
+    np.testing.assert_allclose(variances, np.maximum(np.diag(sandwich), np.diag(model_based)))
+    assert np.diag(sandwich)[0] > model_based[0, 0] and np.diag(sandwich)[1] < model_based[1, 1]
+    # The sandwich's correlation is kept, so the matrix stays a covariance.
+    correlation = covariance[0, 1] / np.sqrt(variances[0] * variances[1])
+    np.testing.assert_allclose(correlation, sandwich[0, 1] / np.sqrt(np.diag(sandwich).prod()))
+    assert np.linalg.eigvalsh(covariance).min() >= 0

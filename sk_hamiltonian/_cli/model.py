@@ -173,7 +173,7 @@ def show(argv):
         covariance = getattr(regressor, "coef_covariance_", None) is not None
         print(f"learned: {format_hamiltonian(regressor, state_names=names, intervals=resampled or covariance)}")
         if covariance:
-            print("  (the intervals: the trajectory fit's own, from its sandwich covariance "
+            print("  (the intervals: the trajectory fit's own, from its covariance "
                   "stored in the file" + (f"; the inclusion counts: "
                                           f"{regressor.resampled_coef_.shape[0]} least-squares "
                                           f"refits on resamples)" if resampled else ")"))

@@ -26,7 +26,7 @@ def format_hamiltonian(model, *, state_names=None, max_terms=8, intervals=False)
         rounded to the interval's first digit; with refits, a term dropped by
         some says in how many it was kept, and terms the model dropped but
         some refits kept are listed after the formula, e.g. ``H~ = -9.795
-        (±0.012) cos(q) + 0.5007 (±0.0007) p^2 + const; every term kept in
+        (±0.013) cos(q) + 0.5007 (±0.0007) p^2 + const; every term kept in
         100/100 resamples (90% intervals of the trajectory fit)``.
 
     Returns

@@ -2,8 +2,9 @@
 
 Two sources, one interface. A model fitted with ``fit_on="trajectories"``
 carries the covariance of its coefficients from the trajectory fit
-(``coef_covariance_``, a sandwich estimate): the intervals of the printed
-coefficients are normal intervals of that estimate. A model fitted with
+(``coef_covariance_``, a sandwich estimate no narrower than the
+model-based one): the intervals of the printed coefficients are normal
+intervals of that estimate. A model fitted with
 ``n_resamples > 0`` carries refits on resamples of its trajectories
 (``resampled_coef_``): they give each term's inclusion frequency, and the
 intervals where there is no covariance (percentile intervals of the refits,
@@ -63,7 +64,7 @@ def term_intervals(model, *, level=0.9, state_names=None, rtol=1e-9):
     From a model fitted with ``fit_on="trajectories"`` (whose fit was
     accepted: it has ``coef_covariance_``), the intervals are those of the
     trajectory fit itself: the coefficient plus or minus the normal quantile
-    of ``level`` times its standard deviation, from the sandwich covariance
+    of ``level`` times its standard deviation, from that covariance
     re-expressed in the readable basis. They describe the printed estimate,
     as precise as the trajectories make it; they do not cover a wrong set of
     terms, nor a bias every sample shares.

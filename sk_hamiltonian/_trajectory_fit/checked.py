@@ -32,7 +32,7 @@ from .segments import (
     shooting_segments,
     split_times,
 )
-from .covariance import sandwich_covariance
+from .covariance import parameter_covariance
 from .solver import TrajectoryFitError, fit_initial_states, fit_trajectories
 from .terms import KeptTerms
 
@@ -114,9 +114,10 @@ def refine(regressor, trajectories, dt, *, least_squares=None, held_out=None):
         about 1 where the model explains it); ``n_segments``; ``change``
         (the largest relative change of a kept coefficient); ``covariance``,
         that of ``coef_`` (then of ``damping_`` for a damped model), the
-        sandwich of :func:`~.covariance.sandwich_covariance` with the scores
-        clustered by trajectory (by segment with fewer than
-        :data:`MIN_CLUSTERS` trajectories).
+        :func:`~.covariance.parameter_covariance` with the scores clustered
+        by trajectory (by segment with fewer than :data:`MIN_CLUSTERS`
+        trajectories): the sandwich, each variance at least the
+        model-based one.
     """
     info = _refine(regressor, trajectories, dt, least_squares, held_out)
     _set_outcome(regressor, info)
@@ -167,7 +168,7 @@ def _refine(regressor, trajectories, dt, least_squares, held_out):
     segment_owner = np.concatenate(owners)
     clusters = (segment_owner if np.unique(segment_owner).size >= MIN_CLUSTERS
                 else np.arange(segment_owner.size))
-    covariance = sandwich_covariance(result["information"], np.concatenate(result["scores"]),
+    covariance = parameter_covariance(result["information"], np.concatenate(result["scores"]),
                                      clusters)
     info = dict(status="refined", n_terms=terms.n_terms, n_iter=result["n_iter"],
                 converged=result["converged"], noise=result["noise"],

@@ -1,11 +1,16 @@
-"""How precise the fitted parameters are: their information, and the sandwich covariance.
+"""How precise the fitted parameters are: their information, and their covariance.
 
 With the initial states of the trajectories profiled out, the information
 about the parameters is the Schur complement of the Gauss-Newton normal
 matrix (:func:`information`); its inverse is the covariance where the noise
 model is right. The sandwich (:func:`sandwich_covariance`) adds each
 cluster's scores, and stays right where the noise model is wrong, as long as
-the clusters (trajectories) are independent.
+the clusters (trajectories) are independent. The sandwich is estimated from
+the scores themselves, so with a few hundred clusters and several parameters
+it scatters and runs low for some of them (measured: 80-82 % coverage of
+nominal 90 % on three of Henon-Heiles' six terms, while the model-based
+variance covers them); :func:`parameter_covariance` takes, parameter by
+parameter, the larger of the two.
 """
 
 import numpy as np
@@ -62,3 +67,34 @@ def sandwich_covariance(information, scores, clusters):
     inverse = np.linalg.pinv(information)
     covariance = inverse @ meat @ inverse
     return (covariance + covariance.T) / 2
+
+
+def parameter_covariance(information, scores, clusters):
+    """The covariance of the parameters: the sandwich, widened to the model-based variance.
+
+    Parameters
+    ----------
+    information : ndarray of shape (n_params, n_params)
+    scores : ndarray of shape (n_segments, n_params)
+    clusters : ndarray of int of shape (n_segments,)
+        As in :func:`sandwich_covariance`.
+
+    Returns
+    -------
+    covariance : ndarray of shape (n_params, n_params)
+        ``D Sigma D``, with ``Sigma`` the sandwich and ``D`` diagonal,
+        ``D_ii = sqrt(max(1, (S^-1)_ii / Sigma_ii))``: each parameter's
+        variance is the larger of the sandwich's and the model-based
+        ``S^-1``'s, and the sandwich's correlations are kept (so the matrix
+        stays positive semi-definite). A wrong noise model that makes the
+        data scatter more than it says still widens the intervals through
+        the sandwich; the sandwich's own scatter cannot make them narrower
+        than the noise model's.
+    """
+    sandwich = sandwich_covariance(information, scores, clusters)
+    model_based = np.diag(np.linalg.pinv(information))
+    variance = np.diag(sandwich)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = np.where(variance > 0, model_based / variance, 1.0)
+    scale = np.sqrt(np.maximum(ratio, 1.0))
+    return sandwich * scale[:, None] * scale[None, :]
