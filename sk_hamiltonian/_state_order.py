@@ -194,3 +194,31 @@ def swap_couplings(couplings, n_states):
            for i, j in zip(group, given)):
         return couplings
     return [tuple((i + d) % n_states for i in group) for group in groups]
+
+
+def swap_space(space, n_states):
+    """A dict of per-state model-space parameters with its halves exchanged.
+
+    ``periodic``, ``mixed`` and ``couplings`` between the user's column order
+    and the model's ``(p, q)`` order (either way: the exchange is its own
+    inverse); the other entries are returned as given.
+    """
+    space = dict(space)
+    for key in ("periodic", "mixed"):
+        if space.get(key) is not None and np.ndim(space[key]) == 1:
+            swapped = swap_names(space[key])
+            space[key] = swapped if isinstance(space[key], list) else np.asarray(swapped)
+    if space.get("couplings") is not None:
+        space["couplings"] = swap_couplings(space["couplings"], n_states)
+    return space
+
+
+def swap_raw(X, offset):
+    """Raw trajectories (time stamps first when ``offset`` is 1) with their states' halves exchanged."""
+    def swap(T):
+        T = np.asarray(T)
+        return np.concatenate([T[..., :offset], swap_halves(T[..., offset:])], axis=-1)
+
+    if isinstance(X, (list, tuple)):
+        return [swap(T) for T in X]
+    return swap(X)

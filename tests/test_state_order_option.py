@@ -200,3 +200,30 @@ def test_the_prediction_band_and_the_offset_read_the_columns_order(data):
     # 1e-3, where a box with the halves exchanged is off by about 100 %).
     assert hamiltonian_offset(swapped, lambda X: energy(qp(X))) == pytest.approx(
         hamiltonian_offset(pq, energy), rel=1e-3)
+
+
+def test_the_search_runs_in_pq_order_and_answers_in_the_columns_order(data):
+    from sk_hamiltonian.model_selection import HamiltonianSearchCV
+
+    X, _ = data
+    small = {"denoise_degrees": ("finite_difference",), "degrees": (4,),
+             "fit_on": ("derivatives",), "thresholds": (0.03,), "cv": 3}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        pq = HamiltonianSearchCV(dt=0.01, **small).fit(X)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", StateOrderWarning)
+        swapped = HamiltonianSearchCV(dt=0.01, state_order="qp", state_names=["theta", "L"],
+                                      **small).fit(qp(X))
+    chosen = swapped.best_estimator_[-1]
+    assert chosen.state_order == "qp"
+    np.testing.assert_allclose(chosen.coef_, pq.best_estimator_[-1].coef_)
+    # The angle is found in the columns' first place, and reported there.
+    assert pq.best_params_["hamiltonianregressor__periodic"] == [False, True]
+    assert swapped.best_params_["hamiltonianregressor__periodic"] == [True, False]
+    assert swapped.best_score_ == pytest.approx(pq.best_score_)
+    # The refinement on the raw trajectories (model order) kept the same terms.
+    assert swapped.refinement_["status"] == pq.refinement_["status"]
+    assert {t.text for t in hamiltonian_terms(chosen)} == {"L^2", "cos(theta)"}
+    t = np.linspace(0.0, 1.0, 11)
+    np.testing.assert_allclose(swapped.simulate(qp(X[0, 0]), t), qp(pq.simulate(X[0, 0], t)))
