@@ -227,3 +227,32 @@ def test_the_search_runs_in_pq_order_and_answers_in_the_columns_order(data):
     assert {t.text for t in hamiltonian_terms(chosen)} == {"L^2", "cos(theta)"}
     t = np.linspace(0.0, 1.0, 11)
     np.testing.assert_allclose(swapped.simulate(qp(X[0, 0]), t), qp(pq.simulate(X[0, 0], t)))
+
+
+def test_the_command_reads_qp_columns_with_order_qp(data, tmp_path, capsys):
+    from sk_hamiltonian._cli import main
+
+    X, _ = data
+    path = tmp_path / "runs.npz"
+    np.savez(path, trajectories=qp(X))  # columns (theta, L)
+    out_dir = tmp_path / "out"
+    args = [str(path), "--dt", "0.01", "--no-resample", "--degrees", "4", "--denoise-degrees",
+            "fd", "--output", str(out_dir), "--names", "theta", "L"]
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", StateOrderWarning)
+        warnings.filterwarnings("ignore", category=UserWarning,
+                                message="(?!.*look ordered)")  # the fit's own notes
+        assert main(args + ["--order", "qp"]) == 0
+    out = capsys.readouterr().out
+    assert "fitted and reported as L, theta" in out and "cos(theta)" in out
+    model = load(out_dir / "model.skh")[-1]
+    # Exchanged on loading: the angle is the model's position.
+    np.testing.assert_array_equal(model.periodic_, [False, True])
+    assert {t.text for t in hamiltonian_terms(model)} == {"L^2", "cos(theta)"}
+    for bad in (["--order", "q,p"], ["--order", "qp", "--names", "a", "b", "c"]):
+        with pytest.raises(SystemExit) as exit_info:
+            main(args[:-3] + bad)
+        assert exit_info.value.code == 2
+    err = capsys.readouterr().err
+    assert "--order must be pq (momenta first) or qp (positions first); got 'q,p'" in err
+    assert "--names: must have one name per state variable" in err
