@@ -7,11 +7,11 @@ import warnings
 
 import numpy as np
 
-from .._io_text import escaping_output, printable
 from .._integrate.simulation import check_outputs
+from .._io_text import escaping_output, printable
+from .._state_order import swap_halves
 from ..exceptions import DomainWarning, SimulationError
 from ..io import ModelFileError, load, read_manifest
-from .._state_order import swap_halves
 from .datafiles import default_state_names
 from .errors import UsageError, check_positive
 from .outputs import OUTPUTS

@@ -10,8 +10,8 @@ import math
 from .. import __version__
 from .._memory import bytes_text, memory_limit
 from .._resampling import largest_resamples, resample_bytes
-from .data import MIN_SAMPLES, SEGMENT_SAMPLES
 from .._state_order import STATE_ORDERS
+from .data import MIN_SAMPLES, SEGMENT_SAMPLES
 from .errors import UsageError
 from .resampling import DEFAULT_RESAMPLES
 
