@@ -256,3 +256,17 @@ def test_the_command_reads_qp_columns_with_order_qp(data, tmp_path, capsys):
     err = capsys.readouterr().err
     assert "--order must be pq (momenta first) or qp (positions first); got 'q,p'" in err
     assert "--names: must have one name per state variable" in err
+
+
+def test_partial_fit_reads_each_chunk_in_the_columns_order(data):
+    _, Xt = data
+    states, derivatives = Xt[..., 1:3].reshape(-1, 2), Xt[..., 3:5].reshape(-1, 2)
+    box = {"degree": 4, "periodic": [False, True], "domain": [[-8, 8], [-np.pi, np.pi]]}
+    pq, _ = fit(states, derivatives, **box)
+    swapped = HamiltonianRegressor(degree=4, periodic=[True, False],
+                                   domain=[[-np.pi, np.pi], [-8, 8]], state_order="qp")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        for chunk in np.array_split(np.arange(len(states)), 3):
+            swapped.partial_fit(qp(states[chunk]), qp(derivatives[chunk]))
+    np.testing.assert_allclose(swapped.coef_, pq.coef_, rtol=1e-6, atol=1e-9)
