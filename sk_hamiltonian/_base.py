@@ -27,6 +27,7 @@ from ._scoring import rollout_score
 from ._space import ModelSpace
 from ._space.builder import space_size
 from ._space.space import all_finite, count_outside
+from ._state_order import swap_couplings, swap_halves, swap_layout
 from ._streaming import available_with_domain, partial_fit_chunk
 from ._threads import gram_flops, limit_blas
 from ._trajectories import is_trajectory_container, unpack_derivatives
@@ -95,6 +96,42 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
         self.random_state = random_state
         self.n_jobs = n_jobs
 
+    # ---------------------------------------------------------- state order
+    def _swapped(self):
+        """Whether the user's columns are ``(q, p)`` (``state_order="qp"``).
+
+        The model works in ``(p, q)`` order throughout; with ``"qp"`` every
+        state-shaped input is exchanged into it and every output back. A
+        regressor without the parameter reads states as ``(p, q)``.
+        """
+        return getattr(self, "state_order", "pq") == "qp"
+
+    def _to_model(self, states):
+        """States (last axis) in the user's column order as the model's ``(p, q)``.
+
+        The exchange of the halves is its own inverse, so this also takes the
+        model's outputs back to the user's order.
+        """
+        return swap_halves(states) if self._swapped() else states
+
+    def _layout_to_model(self, Xt):
+        """The derivative layout ``Xt`` with its states in the model's order."""
+        return swap_layout(Xt) if self._swapped() else Xt
+
+    def _state_parameter(self, name):
+        """A per-state parameter (``domain``, ``periodic``, ``mixed``, ``couplings``) in model order.
+
+        They are given in the user's column order, like ``X`` and
+        ``state_names``; the fit reads them in the model's ``(p, q)`` order.
+        """
+        value = getattr(self, name)
+        if value is None or not self._swapped():
+            return value
+        if name == "couplings":
+            return swap_couplings(value, getattr(self, "n_features_in_", 0))
+        array = np.asarray(value)
+        return value if array.ndim == 0 else swap_halves(array, axis=0)
+
     @property
     def _fit_target(self):
         """What the least-squares fit matches: a fit on trajectories starts from the derivatives."""
@@ -147,6 +184,7 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
             self._check_trajectory_input(X, y, sample_weight)
         if is_dask(X) or is_dask(y):
             self._check_no_resampling("a fit on dask arrays")
+            self._check_no_swap("a fit on dask arrays")
             return fit_distributed(self, X, y, sample_weight)
         self._partial = None
         data = self._training_data(X, y, sample_weight)
@@ -174,6 +212,15 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
         if self.fit_on == "trajectories":
             self._fit_trajectories(X)
         return self
+
+    def _check_no_swap(self, what):
+        """Refuse ``state_order="qp"`` where the columns cannot be exchanged on the way in."""
+        if self._swapped():
+            raise ValueError(
+                f"{type(self).__name__}: state_order='qp' is not supported for {what}. "
+                f"Exchange the columns into (p_1..p_d, q_1..q_d) order yourself (e.g. "
+                f"np.roll(X, d, axis=-1) for d degrees of freedom) and use state_order='pq'."
+            )
 
     def _check_trajectory_input(self, X, y, sample_weight):
         """Refuse what a fit on trajectories cannot take, before anything is fitted."""
@@ -299,8 +346,19 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
                 )
 
     def _training_data(self, X, y, sample_weight, reset=True):
-        """Validate the input and gather what the fit needs (a :class:`~sk_hamiltonian._training_data.TrainingData`)."""
-        return training_data(self, X, y, sample_weight, reset)
+        """Validate the input and gather what the fit needs (a :class:`~sk_hamiltonian._training_data.TrainingData`).
+
+        The states and derivatives come out in the model's ``(p, q)`` order:
+        a layout is exchanged before its validation, 2-D states after theirs,
+        so that ``feature_names_in_`` keeps the user's column order.
+        """
+        if not self._swapped():
+            return training_data(self, X, y, sample_weight, reset)
+        if is_trajectory_container(X):
+            return training_data(self, swap_layout(X), y, sample_weight, reset)
+        data = training_data(self, X, y, sample_weight, reset)
+        data.states, data.derivatives = swap_halves(data.states), swap_halves(data.derivatives)
+        return data
 
     def _warn_outside(self, X, space=None, what="X", stacklevel=3):
         """A :class:`DomainWarning` for the rows of ``X`` outside ``space``'s box (default: the fitted one)."""
@@ -383,7 +441,8 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
             evaluated at the layout's states.
         """
         self._check_fitted()
-        checked = self._checked_prediction(X)
+        # The compiled shortcut returns the model's order: only for "pq".
+        checked = None if self._swapped() else self._checked_prediction(X)
         if checked is not None:
             dXdt, n_outside = checked
             self._warn_n_outside(n_outside, X.shape[0])
@@ -393,9 +452,9 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
             if isinstance(states, np.ndarray):
                 return self.predict(states.reshape(-1, states.shape[-1])).reshape(states.shape)
             return [self.predict(s) for s in states]
-        X = self._validate_states(X)
+        X = self._to_model(self._validate_states(X))
         self._warn_outside(X)
-        return self._vector_field(X)
+        return self._to_model(self._vector_field(X))
 
     def _checked_prediction(self, X):
         """``(dXdt, n_outside)`` of a few states in one compiled call, or None.
@@ -474,6 +533,7 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
         """
         check_is_fitted(self)
         x0, single = simulation.check_initial_states(x0, self.n_features_in_)
+        x0 = self._to_model(x0)
         t = simulation.check_time(t)
         simulation.check_max_step(max_step)
         simulation.check_outputs(t.shape[0], x0.shape[0], self.n_features_in_)
@@ -487,6 +547,7 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
         Y, reached = simulation.run(integrator, x0, t, max_step, on_failure,
                                     what=f"the learned system ({type(self).__name__})")
         self._warn_outside(Y[reached], what="the simulated states", stacklevel=3)
+        Y = self._to_model(Y)  # back to the user's column order
         return Y[0] if single else Y
 
     # --------------------------------------------------------------- scoring
@@ -538,7 +599,7 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
                 )
             return super().score(X, y, sample_weight=sample_weight)
         check_is_fitted(self)
-        return rollout_score(self, X, sample_weight)
+        return rollout_score(self, self._layout_to_model(X), sample_weight)
 
     # ------------------------------------------------------------------ hooks
     def _check_dimensions(self, n_states):

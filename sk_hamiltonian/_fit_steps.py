@@ -35,9 +35,11 @@ from ._space.builder import space_size
 def space_parameters(estimator):
     """The estimator's parameters of :func:`~._space.builder.build_space` but the domain."""
     return dict(
-        degree=estimator.degree, periodic=estimator.periodic, mixed=estimator.mixed,
+        degree=estimator.degree, periodic=estimator._state_parameter("periodic"),
+        mixed=estimator._state_parameter("mixed"),
         momentum_degree=estimator.momentum_degree, separable=estimator.separable,
-        max_interaction=estimator.max_interaction, couplings=estimator.couplings,
+        max_interaction=estimator.max_interaction,
+        couplings=estimator._state_parameter("couplings"),
         include_constant=estimator._include_constant,
     )
 
@@ -71,7 +73,7 @@ def build_space(estimator, data, *, domain=None, size_data=None):
     """
     n_states = data.states.shape[1]
     estimator._check_dimensions(n_states)
-    explicit = estimator.domain if domain is None else domain
+    explicit = estimator._state_parameter("domain") if domain is None else domain
 
     def check_size(n_terms):
         # Before the index set is built: too few equations, or too many unknowns.

@@ -46,8 +46,13 @@ def check_input(estimator, X, y, sample_weight):
 
 
 def fit_on_trajectories(estimator, X):
-    """The trajectory fit of a fitted least-squares ``estimator`` on layout ``X``, set in place."""
-    layout = unpack_derivatives(X)
+    """The trajectory fit of a fitted least-squares ``estimator`` on layout ``X``, set in place.
+
+    ``X`` is in the user's column order: the refits of the held-out check
+    (clones, with the same ``state_order``) take it so, while the trajectory
+    fit itself reads the observations in the model's ``(p, q)`` order.
+    """
+    layout = unpack_derivatives(estimator._layout_to_model(X))
     trajectories = [np.column_stack([t, O]) for t, O in zip(layout.times, layout.observed)]
     n = len(trajectories)
     held_out = ([np.arange(start, n, 2) for start in (0, 1)] if n >= MIN_CHECKED else None)

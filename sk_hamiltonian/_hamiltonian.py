@@ -14,7 +14,7 @@ from ._integrate.compiled import KernelModel
 from ._kernels import LANE_ROWS
 from ._least_squares import HamiltonianDesign
 from ._space import ModelSpace, compiled
-from ._state_order import warn_if_order_looks_swapped
+from ._state_order import STATE_ORDERS, warn_if_order_looks_swapped
 from ._structure import apply_structure
 from ._trajectories import check_n_states
 from ._warnings import warn
@@ -195,8 +195,23 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
         (:meth:`equations`, :func:`~sk_hamiltonian.inspection.format_hamiltonian`,
         the command's ``show``) and saved in model files. None: the column
         names of ``X`` if it had them, else ``p, q`` or ``p1.., q1..``. They
-        do not reorder anything: states are read as ``(p, q)`` whatever
-        they are called.
+        do not reorder anything: they are given in the order of the columns
+        of ``X`` (so after ``state_order="qp"``, positions first), and the
+        columns are read as ``state_order`` says whatever they are called.
+    state_order : {"pq", "qp"}, default="pq"
+        The order of the state variables in the columns of ``X`` (and of the
+        derivatives ``y``, the states and derivatives of a
+        :class:`DerivativeTransformer`'s output, the initial states of
+        :meth:`simulate`): ``"pq"`` is ``(p_1..p_d, q_1..q_d)``, ``"qp"`` is
+        ``(q_1..q_d, p_1..p_d)``, as in PySINDy and most lab files. Every
+        state-shaped input is reordered to ``(p, q)``, in which the model
+        works, and every state-shaped output (:meth:`predict`,
+        :meth:`simulate`, :meth:`gradient`) back to the columns' order.
+        ``domain``, ``periodic``, ``mixed``, ``couplings`` and
+        ``state_names`` are given in the columns' order too; the fitted
+        attributes (``domain_``, ``periodic_``, ``mixed_``, ``powers_``,
+        ``state_scale_``) are in the model's ``(p, q)`` order. Not available
+        for a fit on dask arrays.
 
     Attributes
     ----------
@@ -333,6 +348,7 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
         "fit_on": [StrOptions({"derivatives", "steps", "simpson", "weak", "trajectories"})],
         "damping": ["boolean"],
         "state_names": ["array-like", None],
+        "state_order": [StrOptions(set(STATE_ORDERS))],
     }
 
     def __init__(
@@ -340,6 +356,7 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
         separable=False, max_interaction=None, couplings=None, fit_on="derivatives",
         threshold=0.0, damping=False, solver="auto", verbose=0, n_resamples=0,
         resample="bootstrap", random_state=None, n_jobs=None, state_names=None,
+        state_order="pq",
     ):
         super().__init__(
             degree, domain=domain, periodic=periodic, mixed=mixed,
@@ -351,6 +368,7 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
         )
         self.damping = damping
         self.state_names = state_names
+        self.state_order = state_order
 
     # ------------------------------------------------------------------ fit
     def _check_trajectory_input(self, X, y, sample_weight):
@@ -563,6 +581,7 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
         """
         self._check_fitted()
         flat, lead = self._check_states(X)
+        flat = self._to_model(flat)
         self._warn_outside(flat)
         return self._hamiltonian(flat).reshape(lead)
 
@@ -625,8 +644,9 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
         """
         self._check_fitted()
         flat, lead = self._check_states(X)
+        flat = self._to_model(flat)
         self._warn_outside(flat)
-        return self._gradient(flat).reshape(lead + (self.n_features_in_,))
+        return self._to_model(self._gradient(flat)).reshape(lead + (self.n_features_in_,))
 
 
 def _plain(a, shape, dtype=np.float64):

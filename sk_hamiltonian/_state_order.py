@@ -101,15 +101,124 @@ def warn_if_order_looks_swapped(model, states):
     falls = np.all(momenta < -NEGATIVE * scale, axis=1)
     if not (scale > 0 and falls.any() and share >= SHARE):
         return
-    d = momenta.shape[1]
-    example = ("X[..., ::-1]" if d == 1
-               else f"np.concatenate([X[..., {d}:], X[..., :{d}]], axis=-1)")
+    given = getattr(model, "state_order", "pq")
+    if given == "qp":
+        # Exchanged on input, the columns were (p, q) already.
+        fix = ("the columns look ordered (p, q), not (q, p) as state_order='qp' says: fit "
+               "with state_order='pq'")
+    else:
+        fix = ("the states look ordered (q, p). Fit with state_order='qp' (the columns of X, "
+               "and of y if given, are then read as (q_1..q_d, p_1..p_d), and outputs come "
+               "back in that order)")
     warn(
         f"{type(model).__name__}: the learned H~ curves down in every momentum (its Hessian "
         f"in p, averaged over the training states, is negative definite) and in every "
-        f"position, as a negated kinetic energy does: the states look ordered (q, p). Pass "
-        f"them as (p_1..p_d, q_1..q_d), here {example} (with derivatives y, reorder them "
-        f"the same way); if they are in that order, check that time runs forward and the "
-        f"momenta's sign, or ignore this StateOrderWarning if H~ really has a maximum in p.",
+        f"position, as a negated kinetic energy does: {fix}; if the order is right, check "
+        f"that time runs forward and the momenta's sign, or ignore this StateOrderWarning "
+        f"if H~ really has a maximum in p.",
         StateOrderWarning,
     )
+
+
+# ----------------------------------------------------------------------------
+# The ``state_order`` parameter: columns given as (q, p), exchanged at the edges.
+#
+# Inside, a model is always in (p_1..p_d, q_1..q_d) order: its fitted
+# attributes, basis and integrators. With ``state_order="qp"`` the user's
+# columns are (q_1..q_d, p_1..p_d); exchanging the two halves maps one order
+# onto the other, and exchanging them twice is the identity, so the same
+# function reorders inputs (user to model) and outputs (model to user).
+
+#: The values of ``state_order``.
+STATE_ORDERS = ("pq", "qp")
+
+
+def swap_halves(values, axis=-1):
+    """``values`` with the two halves of ``axis`` exchanged (unchanged if it is odd).
+
+    An odd width is no state of a Hamiltonian system; it is left to the
+    validation that reports it with the argument's name.
+    """
+    values = np.asarray(values)
+    n = values.shape[axis]
+    if n % 2:
+        return values
+    return np.roll(values, n // 2, axis=axis)
+
+
+def swap_names(names):
+    """A list of ``2d`` names (or None) with its halves exchanged (unchanged if odd)."""
+    if names is None:
+        return None
+    names = list(names)
+    if len(names) % 2:
+        return names
+    d = len(names) // 2
+    return names[d:] + names[:d]
+
+
+def swap_layout(Xt):
+    """The derivative layout ``[t | states | derivatives | observed]`` with each block's halves exchanged.
+
+    A 3-D array stays one, a list stays a list of 2-D arrays. A last axis
+    that is no layout of an even number of states is returned unchanged, for
+    :func:`~sk_hamiltonian.unpack_derivatives` to report.
+    """
+    first = Xt[0] if isinstance(Xt, (list, tuple)) else Xt
+    width = np.shape(first)[-1]
+    n = (width - 1) // 3
+    if width != 1 + 3 * n or n % 2:
+        return Xt
+    perm = np.roll(np.arange(n), n // 2)
+    columns = np.concatenate([[0], 1 + perm, 1 + n + perm, 1 + 2 * n + perm])
+    if isinstance(Xt, (list, tuple)):
+        return [np.asarray(T)[:, columns] for T in Xt]
+    return np.asarray(Xt)[..., columns]
+
+
+def swap_couplings(couplings, n_states):
+    """Groups of state indices in the user's order mapped to the model's (p, q) order.
+
+    Index ``i`` of the user's columns is ``(i + d) % 2d`` in the model's.
+    Anything that is not a group of in-range integers is returned as given,
+    for :func:`~sk_hamiltonian._space.builder.build_space` to report.
+    """
+    if couplings is None or n_states % 2:
+        return couplings
+    d = n_states // 2
+    try:
+        groups = [[int(i) for i in group] for group in couplings]
+    except (TypeError, ValueError):
+        return couplings
+    if any(i != j or not 0 <= i < n_states for group, given in zip(groups, couplings)
+           for i, j in zip(group, given)):
+        return couplings
+    return [tuple((i + d) % n_states for i in group) for group in groups]
+
+
+def swap_space(space, n_states):
+    """A dict of per-state model-space parameters with its halves exchanged.
+
+    ``periodic``, ``mixed`` and ``couplings`` between the user's column order
+    and the model's ``(p, q)`` order (either way: the exchange is its own
+    inverse); the other entries are returned as given.
+    """
+    space = dict(space)
+    for key in ("periodic", "mixed"):
+        if space.get(key) is not None and np.ndim(space[key]) == 1:
+            swapped = swap_names(space[key])
+            space[key] = swapped if isinstance(space[key], list) else np.asarray(swapped)
+    if space.get("couplings") is not None:
+        space["couplings"] = swap_couplings(space["couplings"], n_states)
+    return space
+
+
+def swap_raw(X, offset):
+    """Raw trajectories (time stamps first when ``offset`` is 1) with their states' halves exchanged."""
+    def swap(T):
+        T = np.asarray(T)
+        return np.concatenate([T[..., :offset], swap_halves(T[..., offset:])], axis=-1)
+
+    if isinstance(X, (list, tuple)):
+        return [swap(T) for T in X]
+    return swap(X)

@@ -84,8 +84,10 @@ class StateOrderWarning(UserWarning):
     kinetic energy grows, and in every position at nearly every state, as a
     negated kinetic energy does: what data in ``(q, p)`` order give (``-H``
     with the halves exchanged), and data whose time runs backwards or whose
-    momenta have the wrong sign. Reorder the states (for one degree of
-    freedom, ``X[..., ::-1]``) and fit again.
+    momenta have the wrong sign. Fit with ``state_order="qp"``, which reads
+    the columns as ``(q_1..q_d, p_1..p_d)`` and returns outputs in that order
+    (after a fit with ``state_order="qp"`` on data already in ``(p, q)``
+    order, the warning says to use ``"pq"``).
     """
 
 

@@ -17,6 +17,8 @@ import numpy as np
 from scipy.integrate import trapezoid
 from sklearn.utils.validation import check_is_fitted
 
+from ._state_order import swap_halves
+
 __all__ = [
     "BLOWUP_BOUND",
     "blowup_time",
@@ -315,7 +317,11 @@ def convergence_orders(steps, errors):
 
 def _domain_sample(model, domain, n_samples, random_state):
     check_is_fitted(model, "domain_")
-    domain = model.domain_ if domain is None else np.asarray(domain, dtype=float)
+    # The sample goes to model.hamiltonian and to the user's function, which
+    # both read the columns' order: domain_ is in the model's (p, q) order.
+    swapped = getattr(model, "_swapped", lambda: False)()
+    fitted = swap_halves(model.domain_, axis=0) if swapped else model.domain_
+    domain = fitted if domain is None else np.asarray(domain, dtype=float)
     if domain.shape != (model.n_features_in_, 2) or not np.all(domain[:, 0] < domain[:, 1]):
         raise ValueError(
             f"domain must have shape ({model.n_features_in_}, 2), one (low, high) row per "

@@ -108,6 +108,8 @@ def with_slow_marks(parametrize):
         HamiltonianSearchCV(dt=0.1),
         # Sparse fits take the same paths through validation and fitting.
         HamiltonianRegressor(threshold=0.05), VectorFieldRegressor(threshold=0.05),
+        # Columns (q, p): exchanged on the way in and out of every method.
+        HamiltonianRegressor(state_order="qp"),
     ],
     expected_failed_checks=expected_failed_checks,
     xfail_strict=True,

@@ -10,6 +10,7 @@ import warnings
 import numpy as np
 
 from .._inspection.terms import check_state_names
+from .._state_order import swap_names, swap_raw
 from .._trajectories import check_trajectories
 from ..datasets import PAPER_DT, make_trajectories, single_pendulum
 from ..exceptions import OutlierWarning
@@ -80,13 +81,34 @@ class Data:
 
 
 def load_data(args):
-    """The data to fit, with their names, title, true system (or None) and horizon."""
+    """The data to fit, with their names, title, true system (or None) and horizon.
+
+    With ``--order qp`` the state columns (after any time stamps) and their
+    names, the header's or ``--names`` (both in file order), are exchanged
+    into ``(p, q)`` order, in which the command fits and reports.
+    """
     data = _load_data(args)
     if getattr(args, "names", None):
         try:
             data.names = check_state_names(args.names, len(data.names))
         except ValueError as error:
-            raise UsageError(f"--names: {error}".replace("state_names ", "")) from None
+            raise UsageError(
+                f"--names: {error}".replace("state_names ", "")
+                .replace("momenta first", "in the order of the file's columns")) from None
+    if getattr(args, "order", "pq") == "qp":
+        if args.data is None:
+            raise UsageError(
+                "--order qp says how DATA's columns are ordered; the built-in example is "
+                "generated as p, q: drop --order, or give DATA")
+        if len(data.names) % 2:
+            raise UsageError(
+                f"--order qp: the data have {len(data.names)} state columns; positions and "
+                f"momenta come in pairs, so their number must be even")
+        data.X = swap_raw(data.X, 1 if data.stamped else 0)
+        data.names = swap_names(data.names)
+        data._split()
+        print(f"note: --order qp: columns read as positions, then momenta; fitted and "
+              f"reported as {', '.join(data.names)}")
     return data
 
 

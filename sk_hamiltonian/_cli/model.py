@@ -7,8 +7,9 @@ import warnings
 
 import numpy as np
 
-from .._io_text import escaping_output, printable
 from .._integrate.simulation import check_outputs
+from .._io_text import escaping_output, printable
+from .._state_order import swap_halves
 from ..exceptions import DomainWarning, SimulationError
 from ..io import ModelFileError, load, read_manifest
 from .datafiles import default_state_names
@@ -106,6 +107,18 @@ def _regressor(model):
     return model[-1] if hasattr(model, "steps") else model
 
 
+def _columns_box(regressor):
+    """``domain_`` and ``periodic_`` in the order of the model's columns.
+
+    The fitted attributes are in the model's ``(p, q)`` order; a model
+    fitted with ``state_order="qp"`` reads and names its columns ``(q, p)``.
+    """
+    domain, periodic = regressor.domain_, regressor.periodic_
+    if getattr(regressor, "_swapped", lambda: False)():
+        domain, periodic = swap_halves(domain, axis=0), swap_halves(periodic)
+    return domain, periodic
+
+
 def _names(regressor):
     names = getattr(regressor, "state_names", None)
     if names is None:
@@ -192,7 +205,7 @@ def show(argv):
         print(f"learned: a vector field, {outputs} component(s) of "
               f"{regressor.powers_.shape[0]} basis functions each (no Hamiltonian)")
     print("domain:")
-    for name, (low, high), periodic in zip(names, regressor.domain_, regressor.periodic_):
+    for name, (low, high), periodic in zip(names, *_columns_box(regressor)):
         kind = "period" if periodic else "interval"
         print(f"  {name}: [{low:.6g}, {high:.6g}{')' if periodic else ']'} ({kind})")
     print("fitted attributes:")
@@ -238,7 +251,7 @@ def simulate(argv):
         )
     if not np.isfinite(x0).all():
         raise UsageError("--x0 values must be finite numbers")
-    domain, periodic = regressor.domain_, regressor.periodic_
+    domain, periodic = _columns_box(regressor)
     outside = ((x0 < domain[:, 0]) | (x0 > domain[:, 1])) & ~periodic
     if outside.any() and not args.allow_outside:
         k, i = np.argwhere(outside)[0]

@@ -10,6 +10,7 @@ import math
 from .. import __version__
 from .._memory import bytes_text, memory_limit
 from .._resampling import largest_resamples, resample_bytes
+from .._state_order import STATE_ORDERS
 from .data import MIN_SAMPLES, SEGMENT_SAMPLES
 from .errors import UsageError
 from .resampling import DEFAULT_RESAMPLES
@@ -133,9 +134,17 @@ def build_parser():
     )
     parser.add_argument(
         "--names", nargs="+", metavar="NAME",
-        help="names of the state variables, momenta first (e.g. --names L theta): used in "
-        "the formulas, the figure and the model file, instead of a CSV header's or p, q "
-        "(p1.., q1..); they do not reorder the columns",
+        help="names of the state variables in the order of DATA's columns (e.g. --names L "
+        "theta): used in the formulas, the figure and the model file, instead of a CSV "
+        "header's or p, q (p1.., q1..); they do not reorder the columns (--order does)",
+    )
+    parser.add_argument(
+        "--order", default="pq", metavar="pq|qp",
+        help="order of DATA's state columns: pq, momenta first (p1..pd, q1..qd), or qp, "
+        "positions first (q1..qd, p1..pd, as in PySINDy and most lab files); with qp the "
+        "columns (and --names, given in file order) are exchanged into p, q order on "
+        "loading, in which the report, figures and model file list them "
+        "(default: %(default)s)",
     )
     parser.add_argument(
         "--output", default="sk_hamiltonian_output", metavar="DIR",
@@ -227,6 +236,10 @@ def build_parser():
 
 def check_options(args):
     """Refuse options that are wrong whatever the data."""
+    if args.order not in STATE_ORDERS:
+        raise UsageError(
+            f"--order must be pq (momenta first) or qp (positions first); got {args.order!r}"
+        )
     if args.threshold is not None:
         parse_threshold(args.threshold)
     if args.paper_grid and args.fit_on and set(args.fit_on) != {"derivatives"}:

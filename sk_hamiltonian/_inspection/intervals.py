@@ -232,7 +232,8 @@ def prediction_band(model, x0, t, *, level=0.9, max_step=None):
         Fitted with ``fit_on="trajectories"`` (HamiltonianRegressor) or
         ``n_resamples > 0``.
     x0 : array-like of shape (n_states,)
-        The initial state.
+        The initial state, in the order of the model's columns
+        (``state_order``).
     t : array-like of shape (n_times,)
         Strictly increasing output times.
     level : float, default=0.9
@@ -245,8 +246,8 @@ def prediction_band(model, x0, t, *, level=0.9, max_step=None):
     Returns
     -------
     low, median, high : ndarray of shape (n_times, n_states)
-        The band's edges and its median; NaN where fewer than half of the
-        models reached a time.
+        The band's edges and its median, in the columns' order; NaN where
+        fewer than half of the models reached a time.
 
     Raises
     ------
@@ -276,6 +277,7 @@ def prediction_band(model, x0, t, *, level=0.9, max_step=None):
     x0, single = check_initial_states(x0, model.n_features_in_)
     if not single:
         raise ValueError(f"x0 must be one state of shape ({model.n_features_in_},).")
+    x0 = model._to_model(x0)  # the columns' order (state_order) to the model's
     t = check_time(t)
     check_max_step(max_step)
     step = model._default_step("rk4") if max_step is None else max_step
@@ -291,7 +293,7 @@ def prediction_band(model, x0, t, *, level=0.9, max_step=None):
     missing = reached < (n + 1) // 2
     for edge in (low, median, high):
         edge[missing] = np.nan
-    return low, median, high
+    return tuple(model._to_model(edge) for edge in (low, median, high))
 
 
 def _drawn_coefficients(model):

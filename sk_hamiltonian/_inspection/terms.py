@@ -15,6 +15,7 @@ from sklearn.utils.validation import check_is_fitted
 
 from .._space.mixed import MIXED_PERIOD, code_frequency
 from .._space.readable import ReadableBasis
+from .._state_order import swap_names
 
 HamiltonianTerm = namedtuple("HamiltonianTerm", ["coefficient", "powers", "text", "size"])
 HamiltonianTerm.__doc__ = """One term of a learned Hamiltonian in the user's coordinates.
@@ -59,14 +60,24 @@ def _factor_text(name, power, periodic, omega, mixed=False):
 
 def _state_names(model, state_names):
     """The given names checked, else the model's ``state_names``, else ``feature_names_in_``,
-    else ``p, q`` or ``p1.., q1..``."""
+    else ``p, q`` or ``p1.., q1..``; in the model's ``(p, q)`` order.
+
+    Names are given in the order of the user's columns, which
+    ``state_order="qp"`` makes ``(q, p)``: they are exchanged into the order
+    of the model's variables (``powers_``, ``domain_``), which the terms use.
+    """
     n_states = model.n_features_in_
+    swapped = getattr(model, "_swapped", lambda: False)()
     if state_names is None:
         state_names = getattr(model, "state_names", None)
     if state_names is None:
         names = getattr(model, "feature_names_in_", None)
-        return list(names) if names is not None else _default_names(n_states)
-    return check_state_names(state_names, n_states)
+        if names is None:
+            return _default_names(n_states)
+        names = list(names)
+    else:
+        names = check_state_names(state_names, n_states)
+    return swap_names(names) if swapped else names
 
 
 def check_state_names(state_names, n_states):

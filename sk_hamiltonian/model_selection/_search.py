@@ -22,6 +22,7 @@ from sklearn.utils.validation import check_is_fitted
 from .._derivatives import DerivativeTransformer
 from .._hamiltonian import HamiltonianRegressor
 from .._inspection.terms import check_state_names
+from .._state_order import STATE_ORDERS, swap_halves, swap_raw, swap_space
 from .._trajectories import check_trajectories
 from ._degrees import failure_reason, search_unit
 from ._finalists import choose
@@ -171,10 +172,21 @@ class HamiltonianSearchCV(BaseEstimator):
     verbose : int, default=0
         Print the stages' progress when positive.
     state_names : list of str, default=None
-        Names of the ``2d`` state variables, momenta first, given to the
-        chosen model (:class:`~sk_hamiltonian.HamiltonianRegressor`'s
+        Names of the ``2d`` state variables, in the order of the columns
+        (momenta first unless ``state_order="qp"``), given to the chosen
+        model (:class:`~sk_hamiltonian.HamiltonianRegressor`'s
         ``state_names``) for its formulas, reports and model file. None:
         ``p, q`` or ``p1.., q1..``.
+    state_order : {"pq", "qp"}, default="pq"
+        The order of the state columns of ``X`` (after the time stamps):
+        ``"pq"`` is ``(p_1..p_d, q_1..q_d)``, ``"qp"`` is ``(q_1..q_d,
+        p_1..p_d)``. The search runs in ``(p, q)`` order; ``domain``,
+        ``spaces``, ``spaces_``, ``kept_spaces_``, ``cv_results_`` and
+        ``best_params_`` are in the columns' order, and the chosen model is
+        given the same ``state_order`` (:class:`~sk_hamiltonian.HamiltonianRegressor`),
+        so that :meth:`predict` and :meth:`simulate` read and answer in it.
+        The per-variable entries of ``preparation_`` and ``refinement_``
+        (noise models, residuals) are in ``(p, q)`` order.
 
     Attributes
     ----------
@@ -268,13 +280,14 @@ class HamiltonianSearchCV(BaseEstimator):
         "n_jobs": [Integral, None],
         "verbose": ["verbose"],
         "state_names": ["array-like", None],
+        "state_order": [StrOptions(set(STATE_ORDERS))],
     }
 
     def __init__(
         self, dt=None, *, denoise_degrees=("finite_difference", 3, 5, 8), degrees=(4, 6, 8, 10),
         spaces="auto", fit_on=FIT_TARGETS, thresholds=(0.0, 0.001, 0.01, 0.03, 0.1),
         damping=False, domain=None, refine="trajectories", selection="simplest", cv=5,
-        n_jobs=None, verbose=0, state_names=None,
+        n_jobs=None, verbose=0, state_names=None, state_order="pq",
     ):
         self.dt = dt
         self.denoise_degrees = denoise_degrees
@@ -290,6 +303,7 @@ class HamiltonianSearchCV(BaseEstimator):
         self.n_jobs = n_jobs
         self.verbose = verbose
         self.state_names = state_names
+        self.state_order = state_order
 
     def fit(self, X, y=None, groups=None):
         """Search the candidates on trajectories ``X`` and refit the chosen one on all of them.
@@ -319,6 +333,18 @@ class HamiltonianSearchCV(BaseEstimator):
         thresholds = self._check_values("thresholds", self.thresholds, integer=False, low=0)
         fit_on = self._check_fit_on()
         spaces = None if self.spaces == "auto" else self._check_spaces()
+        # state_order="qp": the search runs on the states exchanged into (p, q)
+        # order, with the per-state parameters exchanged alike; what it reports
+        # and the chosen model are in the columns' order.
+        swapped = self.state_order == "qp" and n_states % 2 == 0
+        domain = self.domain
+        if swapped:
+            offset = 1 if self.dt is None else 0
+            trajectories = swap_raw(trajectories, offset)
+            if domain is not None and np.ndim(domain) >= 1:
+                domain = swap_halves(np.asarray(domain, dtype=float), axis=0)
+            if spaces is not None:
+                spaces = [swap_space(space, n_states) for space in spaces]
         # Stage 0: the data as the folds will see them.
         prepared = prepare(trajectories, self.dt, self.cv, groups)
         X, trajectories, folds = prepared.X, prepared.trajectories, prepared.folds
@@ -349,7 +375,7 @@ class HamiltonianSearchCV(BaseEstimator):
         self._say(f"screen: {len(spaces)} spaces on {describe_layout(reference)}, {target}, "
                   f"degree {degrees[0]}")
         records, failures, kept = screen(layouts[reference], folds, spaces, target, degrees[0],
-                                         thresholds, self.damping, self.domain, reference,
+                                         thresholds, self.damping, domain, reference,
                                          self.n_jobs)
         self._say(f"kept: {[spaces[k] for k in kept]}")
         # Stage 2: every layout and fit target in the kept spaces, a finalist each;
@@ -362,7 +388,7 @@ class HamiltonianSearchCV(BaseEstimator):
         pairs = list(itertools.product(searched, fit_on))
         results = Parallel(n_jobs=self.n_jobs)(
             delayed(search_unit)(layouts[key], folds, [spaces[k] for k in kept], target_,
-                                 degrees, thresholds, self.damping, self.domain, key,
+                                 degrees, thresholds, self.damping, domain, key,
                                  rollout=True)
             for key, target_ in pairs
         )
@@ -394,6 +420,9 @@ class HamiltonianSearchCV(BaseEstimator):
             record.pop("fitted", None)
         self.preparation_ = prepared.report
         self.judgement_ = judgement
+        if swapped:
+            # Back to the columns' order, for the report and the chosen model.
+            spaces = [swap_space(space, n_states) for space in spaces]
         self.spaces_ = spaces
         self.kept_spaces_ = [spaces[k] for k in kept]
         self.n_splits_ = len(folds)
@@ -403,15 +432,19 @@ class HamiltonianSearchCV(BaseEstimator):
         self.best_score_ = float(self.cv_results_["mean_test_score"][self.best_index_])
         # Stage 4: the refit on all the data, and its coefficients on the trajectories.
         refit_start = time.perf_counter()
+        # The chosen model reads the columns' order: X back in it, while the
+        # refinement's trajectories stay in the model's (p, q) order.
+        X_columns = swap_raw(X, 1 if self.dt is None else 0) if swapped else X
         self.best_estimator_ = Pipeline([
             ("derivativetransformer", DerivativeTransformer(dt=self.dt)),
-            ("hamiltonianregressor", HamiltonianRegressor(state_names=self.state_names)),
-        ]).set_params(**self.best_params_).fit(X)
+            ("hamiltonianregressor", HamiltonianRegressor(state_names=self.state_names,
+                                                          state_order=self.state_order)),
+        ]).set_params(**self.best_params_).fit(X_columns)
         self.refinement_ = dict(status="not asked")
         if self.refine == "trajectories":
             self._say("refine: the chosen model's coefficients on the raw trajectories")
-            self.refinement_ = refine_chosen(self.best_estimator_, X, trajectories, self.dt,
-                                             folds)
+            self.refinement_ = refine_chosen(self.best_estimator_, X_columns, trajectories,
+                                             self.dt, folds)
             self._say(f"refine: {self.refinement_['status']}")
         self.refit_time_ = time.perf_counter() - refit_start
         self.search_time_ = time.perf_counter() - start
