@@ -61,3 +61,19 @@ def test_simulate_warns_once_per_call_at_its_caller(monkeypatch):
         model.simulate([0.1, 0.2], t, method="rk4", max_step=0.02)
 
 
+
+def test_the_command_line_simulate_prints_the_warning_as_a_note(monkeypatch, tmp_path, capsys):
+    from sk_hamiltonian import save
+    from sk_hamiltonian.__main__ import main
+
+    monkeypatch.setattr(sk_hamiltonian._numba, "_NUMBA", False)
+    monkeypatch.setattr(simulation, "SLOW_AVF_STEPS", 20)
+    save(_oscillator(), tmp_path / "model.skh")
+    argv = ["simulate", str(tmp_path / "model.skh"), "--x0", "0.1", "0.2", "--t-end", "1",
+            "--dt", "0.1", "--max-step", "0.02", "-o", str(tmp_path / "run.csv")]
+    assert main([*argv, "--method", "avf"]) == 0
+    notes = [line for line in capsys.readouterr().out.splitlines()
+             if line.startswith("note: method='avf' takes 50 integration steps")]
+    assert len(notes) == 1 and 'pip install "sk_hamiltonian[fast]"' in notes[0]
+    assert main([*argv, "--method", "rk4"]) == 0
+    assert "sk_hamiltonian[fast]" not in capsys.readouterr().out
