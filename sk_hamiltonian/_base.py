@@ -168,8 +168,10 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
             than ``memory_limit`` (:func:`~sk_hamiltonian.set_config`; the
             message names the degree, the unknowns, the memory and the
             remedies), or the states or derivatives exceed ``1e100`` in
-            magnitude (rescale them); and for every parameter that does not
-            fit the data.
+            magnitude (rescale them), or a ``periodic`` or ``mixed``
+            variable moves more than a quarter period per sample along the
+            trajectories (rescale it to radians, or unmark it); and for every
+            parameter that does not fit the data.
 
         Warns
         -----
