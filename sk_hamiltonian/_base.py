@@ -21,8 +21,8 @@ from . import _fit_steps as steps
 from ._distributed import fit_distributed, is_dask
 from ._integrate import make_integrator, simulation
 from ._least_squares import solve
-from ._resampling import RESAMPLE_KINDS, check_resampling, fit_resamples
 from ._outliers import warn_residual_outliers
+from ._resampling import RESAMPLE_KINDS, check_resampling, fit_resamples
 from ._scoring import rollout_score
 from ._space import ModelSpace
 from ._space.builder import space_size
@@ -30,8 +30,8 @@ from ._space.space import all_finite, count_outside
 from ._state_order import swap_couplings, swap_halves, swap_layout
 from ._streaming import available_with_domain, partial_fit_chunk
 from ._threads import gram_flops, limit_blas
-from ._trajectories import is_trajectory_container, unpack_derivatives
 from ._training_data import training_data
+from ._trajectories import is_trajectory_container, unpack_derivatives
 from .exceptions import DomainWarning
 
 # Rows of evaluations done at once, to bound memory (entries of float64).
@@ -168,8 +168,10 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
             than ``memory_limit`` (:func:`~sk_hamiltonian.set_config`; the
             message names the degree, the unknowns, the memory and the
             remedies), or the states or derivatives exceed ``1e100`` in
-            magnitude (rescale them); and for every parameter that does not
-            fit the data.
+            magnitude (rescale them), or a ``periodic`` or ``mixed``
+            variable moves more than a quarter period per sample along the
+            trajectories (rescale it to radians, or unmark it); and for every
+            parameter that does not fit the data.
 
         Warns
         -----
@@ -530,6 +532,14 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
             ``t = [0, 1e12]``, or ``max_step=1e-12``), or its output more
             memory than ``memory_limit`` (:func:`sk_hamiltonian.set_config`);
             the message names ``t``, ``max_step`` and the count.
+
+        Warns
+        -----
+        UserWarning
+            With ``method="avf"`` for more than 1000 steps per initial state
+            when numba is not installed: each AVF step then costs several
+            times an RK4 step, and ``pip install "sk_hamiltonian[fast]"``
+            removes that cost.
         """
         check_is_fitted(self)
         x0, single = simulation.check_initial_states(x0, self.n_features_in_)
@@ -544,6 +554,7 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
             default = "the default step for this model"
         simulation.check_steps(t, max_step, default)
         simulation.check_on_failure(on_failure)
+        simulation.warn_slow_avf(integrator.name, t, max_step)
         Y, reached = simulation.run(integrator, x0, t, max_step, on_failure,
                                     what=f"the learned system ({type(self).__name__})")
         self._warn_outside(Y[reached], what="the simulated states", stacklevel=3)

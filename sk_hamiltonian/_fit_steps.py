@@ -24,24 +24,25 @@ subclass's ``_design``, ``_check_dimensions``, ``_check_size``,
 
 import numpy as np
 
+from ._angle_steps import check_angle_steps
 from ._integrate import simulation
 from ._least_squares import SupportRule
-from ._solvers import choose_solver, warn_if_ill_conditioned
 from ._memory import check_solver_memory, check_space_memory
+from ._solvers import choose_solver, warn_if_ill_conditioned
 from ._space.builder import build_space as _build
 from ._space.builder import space_size
 
 
 def space_parameters(estimator):
     """The estimator's parameters of :func:`~._space.builder.build_space` but the domain."""
-    return dict(
-        degree=estimator.degree, periodic=estimator._state_parameter("periodic"),
-        mixed=estimator._state_parameter("mixed"),
-        momentum_degree=estimator.momentum_degree, separable=estimator.separable,
-        max_interaction=estimator.max_interaction,
-        couplings=estimator._state_parameter("couplings"),
-        include_constant=estimator._include_constant,
-    )
+    return {
+        "degree": estimator.degree, "periodic": estimator._state_parameter("periodic"),
+        "mixed": estimator._state_parameter("mixed"),
+        "momentum_degree": estimator.momentum_degree, "separable": estimator.separable,
+        "max_interaction": estimator.max_interaction,
+        "couplings": estimator._state_parameter("couplings"),
+        "include_constant": estimator._include_constant,
+    }
 
 
 def build_space(estimator, data, *, domain=None, size_data=None):
@@ -51,8 +52,10 @@ def build_space(estimator, data, *, domain=None, size_data=None):
     estimator's ``_check_dimensions`` and ``_check_size`` included), the
     memory of the least fit of that many unknowns against
     ``memory_limit`` (:func:`sk_hamiltonian.set_config`) before the space is
-    built, and training states outside an explicit domain are reported with
-    a :class:`~sk_hamiltonian.DomainWarning`.
+    built, the steps of periodic and mixed coordinates along the
+    trajectories (:func:`~._angle_steps.check_angle_steps`), and training
+    states outside an explicit domain are reported with a
+    :class:`~sk_hamiltonian.DomainWarning`.
 
     Parameters
     ----------
@@ -89,6 +92,9 @@ def build_space(estimator, data, *, domain=None, size_data=None):
         data.states, domain=explicit, sample_weight=data.sample_weight,
         check_size=check_size, **space_parameters(estimator),
     )
+    # Before any fitting: a periodic or mixed coordinate the samples cannot
+    # resolve would give a finite but meaningless model.
+    check_angle_steps(estimator, space, data)
     if explicit is not None:
         w = data.sample_weight
         # Frames: _warn_n_outside, _warn_outside, here, fit (or partial_fit's

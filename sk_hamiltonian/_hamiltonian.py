@@ -55,7 +55,11 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
         True marks an angle: its basis is trigonometric (``1, cos k theta,
         sin k theta`` with ``theta = 2 pi (x - low) / (high - low)``), and states
         outside its period are wrapped, not extrapolated, everywhere. None:
-        no periodic variable.
+        no periodic variable. A fit on trajectories refuses a periodic (or
+        mixed) variable whose median step between consecutive samples
+        exceeds a quarter period: the samples cannot resolve the angle (wrong
+        units, e.g. degrees over ``[-pi, pi)``); rescale it to radians, give
+        its period through ``domain``, or set the flag to False.
     mixed : array-like of shape (n_states,) of bool, default=None
         True gives a non-periodic variable ``x`` the Fourier terms ``cos k x``,
         ``sin k x`` (period ``2 pi``, in the variable's own units) beside its

@@ -7,7 +7,7 @@ import warnings
 
 import numpy as np
 
-from .._integrate.simulation import check_outputs
+from .._integrate.simulation import FAST_EXTRA, check_outputs
 from .._io_text import escaping_output, printable
 from .._state_order import swap_halves
 from ..exceptions import DomainWarning, SimulationError
@@ -73,8 +73,9 @@ def simulate_parser():
     parser.add_argument(
         "--method", choices=METHODS,
         help="integrator (default: the model's own, RK4, or AVF for a model fitted on steps); "
-        "'avf' conserves the learned H~ exactly; 'leapfrog' and 'yoshida4' need a separable "
-        "model",
+        "'avf' conserves the learned H~ exactly (it is implicit: without numba, "
+        "pip install \"sk_hamiltonian[fast]\", each step costs several RK4 steps); 'leapfrog' "
+        "and 'yoshida4' need a separable model",
     )
     parser.add_argument(
         "--max-step", type=float, metavar="H",
@@ -282,6 +283,8 @@ def simulate(argv):
             raise UsageError(f"cannot write {path}: the directory {folder} does not exist")
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always", DomainWarning)
+        # Every time, not once per process: the slow-AVF note below reads it.
+        warnings.simplefilter("always", UserWarning)
         try:
             Y = regressor.simulate(x0, t, method=args.method, max_step=args.max_step,
                                    on_failure="nan")
@@ -298,6 +301,10 @@ def simulate(argv):
               f"from there on)")
     if any(issubclass(w.category, DomainWarning) for w in caught):
         print("note: the simulated states leave the model's domain, where it is not trusted")
+    # The warning of a long AVF run without numba, caught above with the rest.
+    for w in caught:
+        if FAST_EXTRA in str(w.message):
+            print(f"note: {w.message}")
     if hasattr(regressor, "hamiltonian"):
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", DomainWarning)

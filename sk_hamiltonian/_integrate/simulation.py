@@ -7,11 +7,13 @@ asks for the integrator and step a fit implies (:func:`default_method`,
 """
 
 import math
+import warnings
 from numbers import Real
 
 import numpy as np
 
 from .._memory import SizeLimitError, bytes_text, describe_limit, memory_limit
+from .._numba import numba_available
 from .._threads import limit_blas
 from .driver import integrate, raise_on_failure
 
@@ -29,6 +31,16 @@ TIME_SCALE_SAMPLES = 256
 # Far beyond the horizons the models are trusted for, it refuses accidents
 # such as t = [0, 1e12] or max_step=1e-12, which would run for days.
 MAX_STEPS = 10**7
+# Most AVF steps per initial state a simulate call takes without numba before
+# it warns. Without the compiled loop each AVF step solves its implicit
+# equation in numpy: 3-10 ms a step on models of two or three terms
+# (measured on a busy shared machine), 3-12 times an RK4 step (docs/scaling.rst
+# records 2.4-5.9 on the pendulum's degree-6 model). Below a
+# thousand steps the run still ends within seconds; beyond, it takes tens of
+# seconds and more, and the remedy (the ``fast`` extra) is worth a word.
+SLOW_AVF_STEPS = 1000
+#: The remedy the warning names (the command-line tool looks for it too).
+FAST_EXTRA = 'pip install "sk_hamiltonian[fast]"'
 # Copies of the output a simulation holds at its peak (the integrator's
 # array, the finished trajectories, the states checked against the domain).
 OUTPUT_COPIES = 3
@@ -151,6 +163,37 @@ def check_steps(t, max_step, default=None):
         f"of {MAX_STEPS:.0e}. Shorten t, pass a larger max_step (numpy.inf steps from one "
         f"output time to the next), or simulate in pieces (each from the last state of the "
         f"one before)."
+    )
+
+
+def warn_slow_avf(method, t, max_step, stacklevel=3):
+    """Warn once when an AVF run of more than :data:`SLOW_AVF_STEPS` steps runs without numba.
+
+    Parameters
+    ----------
+    method : str
+        The integrator's name; only ``"avf"`` can warn.
+    t : ndarray of shape (n_times,)
+        Output times (checked).
+    max_step : float
+        The step taken.
+    stacklevel : int, default=3
+        Of the warning: 3 points at the caller of a ``simulate`` that calls
+        this directly.
+    """
+    if method != "avf" or numba_available():
+        return
+    n_steps = count_steps(t, max_step)
+    if n_steps <= SLOW_AVF_STEPS:
+        return
+    warnings.warn(
+        f"method='avf' takes {n_steps:,.0f} integration steps per initial state here, and "
+        f"numba is not installed: without it each AVF step solves its implicit equation in "
+        f"numpy, several times (3-12x measured) the cost of an RK4 step, about 3-10 ms a step "
+        f"even for a model of a few terms. Installing the fast extra, {FAST_EXTRA}, runs the "
+        f"whole simulation compiled and removes that cost; or pass a larger max_step, or method='rk4' where exact "
+        f"conservation of the learned energy is not needed.",
+        UserWarning, stacklevel=stacklevel,
     )
 
 
