@@ -14,6 +14,7 @@ import warnings
 
 import numpy as np
 
+from .._trajectories import unpack_derivatives
 from ._fold_problems import FoldProblems, take
 from ._selection import DEGREE_GAIN, EXACT_FLOOR, pick_within
 
@@ -27,13 +28,16 @@ def failure_reason(failures):
 
 
 def search_unit(Xt, folds, spaces, fit_on, degrees, thresholds, damping, domain, denoise,
-                rollout):
+                rollout, scorer=None, error_score=np.nan):
     """Every candidate of one layout and fit target in ``spaces``; with ``rollout``, its finalist scored.
 
     Returns the candidates' records (``space`` is the index into ``spaces``),
     the row of the finalist (None without ``rollout`` or without one), and
     the messages of the spaces that could not be set up. The finalist's
     record also holds its regressor fitted on all the data (``fitted``).
+    The finalist is scored in each fold by :func:`score_fold` (``scorer``);
+    a score that raises counts as ``error_score``, or is raised with
+    ``error_score="raise"``.
     """
     records, problems, failures = [], [], []
     n_folds = len(folds)
@@ -88,9 +92,11 @@ def search_unit(Xt, folds, spaces, fit_on, degrees, thresholds, damping, domain,
                 _, solution = problem.solve(record["degree"], record["threshold"], fold)
                 model = problem.fitted(record["degree"], record["threshold"], solution, fold)
                 try:
-                    record["scores"][fold] = model.score(take(Xt, test))
-                except Exception:  # a rollout that cannot be scored counts as failed
-                    record["scores"][fold] = np.nan
+                    record["scores"][fold] = score_fold(model, take(Xt, test), scorer)
+                except Exception:
+                    if isinstance(error_score, str) and error_score == "raise":
+                        raise
+                    record["scores"][fold] = error_score
         record["score_time"] = (time.perf_counter() - started) / n_folds
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
@@ -99,6 +105,25 @@ def search_unit(Xt, folds, spaces, fit_on, degrees, thresholds, damping, domain,
     for record in records:
         del record["problem"]
     return records, finalist, failures
+
+
+def score_fold(model, Xt, scorer=None):
+    """A fold-fitted regressor's score on the held-out layout ``Xt``.
+
+    Without ``scorer``, its rollout score against the held-out observations
+    (:meth:`~sk_hamiltonian.HamiltonianRegressor.score`). With one,
+    ``scorer(model, X, y)`` on the held-out states ``X`` and their estimated
+    time derivatives ``y`` (both of shape ``(n_samples, n_states)``), as for
+    a regressor fitted on states and derivatives.
+    """
+    if scorer is None:
+        return model.score(Xt)
+    data = unpack_derivatives(Xt)
+    states, derivatives = data.states, data.derivatives
+    if isinstance(states, list):
+        states, derivatives = np.concatenate(states), np.concatenate(derivatives)
+    n_states = states.shape[-1]
+    return float(scorer(model, states.reshape(-1, n_states), derivatives.reshape(-1, n_states)))
 
 
 def candidate(problem, degree, threshold, n_folds):

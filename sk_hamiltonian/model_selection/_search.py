@@ -14,6 +14,7 @@ from numbers import Integral, Real
 
 import numpy as np
 from sklearn.base import BaseEstimator
+from sklearn.metrics import check_scoring, get_scorer_names
 from sklearn.pipeline import Pipeline
 from sklearn.utils._param_validation import Interval, StrOptions
 from sklearn.utils.parallel import Parallel, delayed
@@ -24,7 +25,7 @@ from .._hamiltonian import HamiltonianRegressor
 from .._inspection.terms import check_state_names
 from .._state_order import STATE_ORDERS, swap_halves, swap_raw, swap_space
 from .._trajectories import check_trajectories
-from ._degrees import failure_reason, search_unit
+from ._degrees import failure_reason, score_fold, search_unit
 from ._finalists import choose
 from ._prepare import prepare
 from ._refine import refine_chosen
@@ -91,7 +92,8 @@ class HamiltonianSearchCV(BaseEstimator):
        *finalist*.
     3. **Choose** among the finalists by the regressors' default rollout
        score against the held-out raw observations (which never sees the
-       derivatives or smoothed states being compared), by ``selection``.
+       derivatives or smoothed states being compared), or by ``scoring``,
+       by ``selection``.
        When the finalists the scores cannot tell apart keep different terms,
        each set of terms is fitted to all the raw trajectories (output error,
        one noise model for all) and the lowest Bayesian information criterion
@@ -187,24 +189,51 @@ class HamiltonianSearchCV(BaseEstimator):
         so that :meth:`predict` and :meth:`simulate` read and answer in it.
         The per-variable entries of ``preparation_`` and ``refinement_``
         (noise models, residuals) are in ``(p, q)`` order.
+    scoring : str, callable or None, default=None
+        How stage 3 scores each finalist on the held-out folds (and what
+        :meth:`score` returns). None: the regressor's rollout score against
+        the held-out raw observations. A scorer name of
+        :func:`sklearn.metrics.get_scorer_names` or a callable
+        ``scorer(estimator, X, y)``: called with the finalist's regressor
+        fitted on the other folds, the held-out trajectories' states ``X``
+        and their estimated time derivatives ``y`` (both of shape
+        ``(n_samples, n_states)``, from the finalist's own derivative
+        layout), as :class:`~sklearn.model_selection.GridSearchCV` scores a
+        regressor fitted on states and derivatives; e.g. ``"r2"`` scores the
+        learned vector field against the held-out derivative estimates.
+        Those estimates differ from layout to layout (de-noising degree),
+        which is why the default compares every finalist with the same raw
+        observations instead. Stages 1 and 2 rank candidates by their
+        equation error whatever ``scoring`` is.
+    refit : bool, default=True
+        Refit the chosen candidate on all the data (``best_estimator_``) and
+        refine it (stage 4). False: the search stops after the choice
+        (``best_params_``, ``best_index_``, ``best_score_``,
+        ``cv_results_``); :meth:`predict`, :meth:`score`, :meth:`simulate`
+        and :meth:`hamiltonian` then raise an ``AttributeError``.
+    error_score : "raise" or float, default=np.nan
+        The score of a finalist in a fold where scoring it raises (e.g. a
+        rollout that cannot be simulated). ``"raise"``: the error is raised.
+        A finalist with a NaN score in some fold is not chosen.
 
     Attributes
     ----------
     best_estimator_ : Pipeline
         ``make_pipeline(DerivativeTransformer(dt=dt), HamiltonianRegressor())``
-        with ``best_params_``, fitted on all the data.
+        with ``best_params_``, fitted on all the data (with ``refit=True``).
     best_params_ : dict
         The chosen candidate's parameters, in the pipeline's names.
     best_index_ : int
         Its row in ``cv_results_``.
     best_score_ : float
-        Its mean rollout score.
+        Its mean score over the folds (rollout, or ``scoring``'s).
     cv_results_ : dict of ndarray
         One row per candidate, laid out as
         ``cv_results_`` of :class:`~sklearn.model_selection.GridSearchCV`
         (``params``, ``param_<name>``, ``split<k>_test_score``,
         ``mean_test_score``, ``std_test_score``, ``rank_test_score``), with
-        the rollout scores of the finalists (NaN for the other candidates),
+        the scores of the finalists (rollout, or ``scoring``'s; NaN for the
+        other candidates),
         and ``split<k>_equation_error``, ``mean_equation_error``,
         ``std_equation_error``, ``n_terms`` (on all the data), ``stage``
         (``"screen"``, ``"search"`` or ``"finalist"``) and ``tied`` (the
@@ -240,7 +269,8 @@ class HamiltonianSearchCV(BaseEstimator):
         (weighted residual sums of squares), ``n_terms``, ``bic`` and
         ``best``.
     refit_time_ : float
-        Seconds of the final fit on all the data, the refinement included.
+        Seconds of the final fit on all the data, the refinement included
+        (0 with ``refit=False``).
     search_time_ : float
         Seconds of the whole search, the refit included.
     n_features_in_ : int
@@ -281,13 +311,17 @@ class HamiltonianSearchCV(BaseEstimator):
         "verbose": ["verbose"],
         "state_names": ["array-like", None],
         "state_order": [StrOptions(set(STATE_ORDERS))],
+        "scoring": [StrOptions(set(get_scorer_names())), callable, None],
+        "refit": ["boolean"],
+        "error_score": [StrOptions({"raise"}), Real],
     }
 
     def __init__(
         self, dt=None, *, denoise_degrees=("finite_difference", 3, 5, 8), degrees=(4, 6, 8, 10),
         spaces="auto", fit_on=FIT_TARGETS, thresholds=(0.0, 0.001, 0.01, 0.03, 0.1),
         damping=False, domain=None, refine="trajectories", selection="simplest", cv=5,
-        n_jobs=None, verbose=0, state_names=None, state_order="pq",
+        n_jobs=None, verbose=0, state_names=None, state_order="pq", scoring=None, refit=True,
+        error_score=np.nan,
     ):
         self.dt = dt
         self.denoise_degrees = denoise_degrees
@@ -304,6 +338,9 @@ class HamiltonianSearchCV(BaseEstimator):
         self.verbose = verbose
         self.state_names = state_names
         self.state_order = state_order
+        self.scoring = scoring
+        self.refit = refit
+        self.error_score = error_score
 
     def fit(self, X, y=None, groups=None):
         """Search the candidates on trajectories ``X`` and refit the chosen one on all of them.
@@ -332,6 +369,9 @@ class HamiltonianSearchCV(BaseEstimator):
         degrees = self._check_values("degrees", self.degrees, integer=True, low=1)
         thresholds = self._check_values("thresholds", self.thresholds, integer=False, low=0)
         fit_on = self._check_fit_on()
+        # A user's scorer of the fold-fitted regressor (score_fold); None: the rollout score.
+        scorer = (None if self.scoring is None
+                  else check_scoring(HamiltonianRegressor(), scoring=self.scoring))
         spaces = None if self.spaces == "auto" else self._check_spaces()
         # state_order="qp": the search runs on the states exchanged into (p, q)
         # order, with the per-state parameters exchanged alike; what it reports
@@ -389,7 +429,7 @@ class HamiltonianSearchCV(BaseEstimator):
         results = Parallel(n_jobs=self.n_jobs)(
             delayed(search_unit)(layouts[key], folds, [spaces[k] for k in kept], target_,
                                  degrees, thresholds, self.damping, domain, key,
-                                 rollout=True)
+                                 rollout=True, scorer=scorer, error_score=self.error_score)
             for key, target_ in pairs
         )
         finalists = []
@@ -411,8 +451,9 @@ class HamiltonianSearchCV(BaseEstimator):
                                          self.dt, prepared.report["noise"])
         if choice is None:
             raise ValueError(
-                "Every finalist's rollout failed in some fold: no candidate can be "
-                "chosen. Inspect cv_results_ or give more data."
+                "Every finalist's score failed in some fold: no candidate can be "
+                "chosen. Inspect cv_results_ or give more data; error_score='raise' shows "
+                "the first failure."
             )
         for i, flag in zip(finalists, tied):
             records[i]["tied"] = bool(flag)
@@ -430,6 +471,12 @@ class HamiltonianSearchCV(BaseEstimator):
         self.best_index_ = finalists[choice]
         self.best_params_ = self.cv_results_["params"][self.best_index_]
         self.best_score_ = float(self.cv_results_["mean_test_score"][self.best_index_])
+        self.n_features_in_ = n_states
+        if not self.refit:
+            self.refinement_ = dict(status="not asked")
+            self.refit_time_ = 0.0
+            self.search_time_ = time.perf_counter() - start
+            return self
         # Stage 4: the refit on all the data, and its coefficients on the trajectories.
         refit_start = time.perf_counter()
         # The chosen model reads the columns' order: X back in it, while the
@@ -448,7 +495,6 @@ class HamiltonianSearchCV(BaseEstimator):
             self._say(f"refine: {self.refinement_['status']}")
         self.refit_time_ = time.perf_counter() - refit_start
         self.search_time_ = time.perf_counter() - start
-        self.n_features_in_ = n_states
         return self
 
     # ------------------------------------------------------------ delegation
@@ -467,11 +513,11 @@ class HamiltonianSearchCV(BaseEstimator):
             ``best_estimator_``: the learned vector field at the
             trajectories' (de-noised) states, in their shape.
         """
-        check_is_fitted(self)
+        self._check_refitted("predict")
         return self.best_estimator_.predict(X)
 
     def score(self, X, y=None):
-        """The rollout score of ``best_estimator_`` on trajectories ``X``.
+        """The score of ``best_estimator_`` on trajectories ``X``: ``scoring``'s, or the rollout score.
 
         Parameters
         ----------
@@ -483,10 +529,17 @@ class HamiltonianSearchCV(BaseEstimator):
         Returns
         -------
         score : float
-            See :meth:`sk_hamiltonian.HamiltonianRegressor.score`.
+            Without ``scoring``, the rollout score
+            (:meth:`sk_hamiltonian.HamiltonianRegressor.score`); with it,
+            ``scoring`` on the states and estimated derivatives of ``X``'s
+            derivative layout, as in the search.
         """
-        check_is_fitted(self)
-        return self.best_estimator_.score(X)
+        self._check_refitted("score")
+        if self.scoring is None:
+            return self.best_estimator_.score(X)
+        scorer = check_scoring(HamiltonianRegressor(), scoring=self.scoring)
+        Xt = self.best_estimator_[0].transform(X)
+        return score_fold(self.best_estimator_[-1], Xt, scorer)
 
     def simulate(self, x0, t, **kwargs):
         """Integrate the chosen model from one or several initial states.
@@ -506,7 +559,7 @@ class HamiltonianSearchCV(BaseEstimator):
         X : ndarray of shape (n_times, n_states) or (n_initial, n_times, n_states)
             The trajectories, sampled at ``t``.
         """
-        check_is_fitted(self)
+        self._check_refitted("simulate")
         return self.best_estimator_[-1].simulate(x0, t, **kwargs)
 
     def hamiltonian(self, X):
@@ -522,7 +575,7 @@ class HamiltonianSearchCV(BaseEstimator):
         H : ndarray of shape X.shape[:-1]
             See :meth:`sk_hamiltonian.HamiltonianRegressor.hamiltonian`.
         """
-        check_is_fitted(self)
+        self._check_refitted("hamiltonian")
         return self.best_estimator_[-1].hamiltonian(X)
 
     def __sklearn_tags__(self):
@@ -535,6 +588,16 @@ class HamiltonianSearchCV(BaseEstimator):
         return tags
 
     # ------------------------------------------------------------ checks
+    def _check_refitted(self, method):
+        check_is_fitted(self)
+        if not self.refit:
+            raise AttributeError(
+                f"This HamiltonianSearchCV was fitted with refit=False: {method} needs the "
+                f"chosen model refitted on all the data. Fit again with refit=True, or fit "
+                f"make_pipeline(DerivativeTransformer(dt), HamiltonianRegressor()) with "
+                f"best_params_ yourself."
+            )
+
     def _say(self, message):
         if self.verbose:
             print(f"[HamiltonianSearchCV] {message}", flush=True)
