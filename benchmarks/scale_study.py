@@ -19,6 +19,11 @@ data and folds:
     fewer than two samples per function of the library (the search's own
     rule; from ``d = 16`` on).
 
+``--chain toda`` runs the same protocol on the Toda lattice with fixed ends
+(:func:`~sk_hamiltonian.datasets.toda_lattice`, ``V(r) = exp(-r) + r - 1``
+per bond): not polynomial, so no model of either method is exact, and only
+the errors and costs compare.
+
 Each row runs in a process of its own, BLAS on one thread, so that its CPU
 time and peak memory are its own:
 
@@ -47,6 +52,7 @@ Run::
     python benchmarks/scale_study.py --methods search
     python benchmarks/scale_study.py --report            # the table from the saved rows
     python benchmarks/scale_study.py --quick             # d = 2, 3 on 60 trajectories
+    python benchmarks/scale_study.py --chain toda --sizes 4 8 --seeds 0
 
 Each (d, seed, method) is saved in ``--output`` (default
 ``benchmarks/results/scale_study``; ``--quick`` writes to its ``quick``
@@ -81,6 +87,7 @@ SEEDS = (0, 1, 2)
 METHODS = ("search", "sindy")
 SINDY_LIBRARY = dict(poly_degree=3)
 QUICK = dict(sizes=(2, 3), seeds=(0,), n_trajectories=60)
+CHAINS = ("fput", "toda")
 
 
 def chain_law(d):
@@ -93,12 +100,12 @@ def chain_law(d):
     return terms
 
 
-def chain_data(d, seed, n_trajectories):
+def chain_data(chain, d, seed, n_trajectories):
     from sklearn.model_selection import KFold
 
-    from sk_hamiltonian.datasets import fput_chain, make_trajectories
+    from sk_hamiltonian.datasets import fput_chain, make_trajectories, toda_lattice
 
-    system = fput_chain(d, beta=1.0)
+    system = fput_chain(d, beta=1.0) if chain == "fput" else toda_lattice(d)
     X = make_trajectories(system, n_trajectories, N_INTERVALS, DT, noise=NOISE,
                           random_state=seed)
     return system, X, KFold(FOLDS, shuffle=True, random_state=seed)
@@ -111,7 +118,7 @@ def peak_mb():
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
 
 
-def run_search(system, X, cv, d, x0, truth):
+def run_search(chain, system, X, cv, d, x0, truth):
     from search_study import model_error
 
     from sk_hamiltonian.inspection import hamiltonian_terms
@@ -124,10 +131,13 @@ def run_search(system, X, cv, d, x0, truth):
     seconds = time.process_time() - start
     model = search.best_estimator_[-1]
     kept = {term.text for term in hamiltonian_terms(model)}
-    law = chain_law(d)
+    # The Toda lattice's potential is not polynomial: no set of monomials is its law.
+    law = chain_law(d) if chain == "fput" else None
     return dict(
-        cpu_s=seconds, wall_s=search.search_time_, exact=kept == law,
-        missing=sorted(law - kept), extra=sorted(kept - law), n_terms=int(model.n_terms_),
+        cpu_s=seconds, wall_s=search.search_time_,
+        exact=kept == law if law is not None else None,
+        missing=sorted(law - kept) if law is not None else [],
+        extra=sorted(kept - law) if law is not None else [], n_terms=int(model.n_terms_),
         error=model_error(model, x0, truth, []), params=search.best_params_,
         kept_spaces=search.kept_spaces_, refinement=search.refinement_["status"],
         n_candidates=len(search.cv_results_["params"]),
@@ -146,7 +156,7 @@ def sindy_exact(anchor, system):
     return bool(np.array_equal(anchor.coef != 0, truth))
 
 
-def run_sindy(system, X, cv, seed, x0, truth):
+def run_sindy(chain, system, X, cv, seed, x0, truth):
     from math import comb
 
     from search_study import T_END, fresh_error
@@ -168,47 +178,48 @@ def run_sindy(system, X, cv, seed, x0, truth):
     anchor = fit_sindy_cv(X, DT, library=SINDY_LIBRARY, folds=folds, seed=seed)
     seconds = time.process_time() - start
     t = np.linspace(0.0, T_END, int(round(T_END / DT)) + 1)
-    return dict(cpu_s=seconds, wall_s=anchor.fit_time, exact=sindy_exact(anchor, system),
+    exact = sindy_exact(anchor, system) if chain == "fput" else None
+    return dict(cpu_s=seconds, wall_s=anchor.fit_time, exact=exact,
                 n_terms=int(anchor.n_terms), params=anchor.params,
                 error=fresh_error(lambda x: anchor.simulate(x, t)[:, -1], x0, truth, []))
 
 
-def run_one(d, seed, method, n_trajectories, path):
+def run_one(chain, d, seed, method, n_trajectories, path):
     """One row, in this process: the data, the fit, its measures; saved to ``path``."""
     from threadpoolctl import threadpool_limits
 
     sys.path.insert(0, str(HERE))
     from search_study import fresh_states
 
-    system, X, cv = chain_data(d, seed, n_trajectories)
+    system, X, cv = chain_data(chain, d, seed, n_trajectories)
     x0, truth = fresh_states(system)
     base = peak_mb()
     with threadpool_limits(1):
         if method == "search":
-            row = run_search(system, X, cv, d, x0, truth)
+            row = run_search(chain, system, X, cv, d, x0, truth)
         else:
-            row = run_sindy(system, X, cv, seed, x0, truth)
-    row.update(d=d, seed=seed, method=method, base_mb=base, peak_mb=peak_mb(),
+            row = run_sindy(chain, system, X, cv, seed, x0, truth)
+    row.update(chain=chain, d=d, seed=seed, method=method, base_mb=base, peak_mb=peak_mb(),
                n_trajectories=n_trajectories)
     path.write_bytes(pickle.dumps(row))
 
 
-def row_path(output, d, seed, method):
-    return output / f"fput{d}_{seed}_{method}.pkl"
+def row_path(output, chain, d, seed, method):
+    return output / f"{chain}{d}_{seed}_{method}.pkl"
 
 
-def compute(d, seed, method, n_trajectories, output):
-    path = row_path(output, d, seed, method)
+def compute(chain, d, seed, method, n_trajectories, output):
+    path = row_path(output, chain, d, seed, method)
     if path.exists():
         return pickle.loads(path.read_bytes())
     started = time.perf_counter()
     subprocess.run([sys.executable, str(Path(__file__).resolve()), "--one", str(d), str(seed),
-                    method, "--n-trajectories", str(n_trajectories), "--output", str(output)],
-                   check=True)
+                    method, "--chain", chain, "--n-trajectories", str(n_trajectories),
+                    "--output", str(output)], check=True)
     row = pickle.loads(path.read_bytes())
     shown = {k: row[k] for k in ("cpu_s", "peak_mb", "exact", "n_terms", "error", "skipped")
              if k in row}
-    print(f"d={d} seed {seed} {method} ({time.perf_counter() - started:.0f} s wall): {shown}",
+    print(f"{chain} d={d} seed {seed} {method} ({time.perf_counter() - started:.0f} s wall): {shown}",
           flush=True)
     return row
 
@@ -220,12 +231,12 @@ def geometric_mean(values):
     return float(np.exp(np.mean(np.log(values)))) if np.all(np.isfinite(values)) else math.inf
 
 
-def report(sizes, seeds, output):
+def report(chain, sizes, seeds, output):
     """Print one line per chain length and method; write the CSV of every row."""
     import csv
 
     rows = {}
-    for path in sorted(output.glob("fput*_*.pkl")):
+    for path in sorted(output.glob(f"{chain}*_*.pkl")):
         row = pickle.loads(path.read_bytes())
         if row["d"] in sizes and row["seed"] in seeds:
             rows[row["d"], row["seed"], row["method"]] = row
@@ -246,7 +257,8 @@ def report(sizes, seeds, output):
                       for r in done if method == "search"
                       and "cpu_s" in rows.get((d, r["seed"], "sindy"), {})]
             line = dict(d=d, method=method, seeds=len(done),
-                        exact=f"{sum(r['exact'] for r in done)}/{len(done)}",
+                        exact=(f"{sum(r['exact'] for r in done)}/{len(done)}"
+                               if chain == "fput" else "-"),
                         n_terms="/".join(str(r["n_terms"]) for r in done),
                         error=geometric_mean([r["error"] for r in done]),
                         cpu_s=float(np.median([r["cpu_s"] for r in done])),
@@ -256,7 +268,8 @@ def report(sizes, seeds, output):
                             else f"{line[k]!s:>10s}" for k in keys))
     fields = ["d", "seed", "method", "n_trajectories", "exact", "n_terms", "error", "cpu_s",
               "wall_s", "base_mb", "peak_mb", "skipped"]
-    with open(output / "scale_study.csv", "w", newline="") as handle:
+    name = "scale_study.csv" if chain == "fput" else f"scale_study_{chain}.csv"
+    with open(output / name, "w", newline="") as handle:
         writer = csv.DictWriter(handle, fieldnames=fields, extrasaction="ignore")
         writer.writeheader()
         writer.writerows(rows[key] for key in sorted(rows))
@@ -268,6 +281,8 @@ def main(argv=None):
                         help="chain lengths d")
     parser.add_argument("--seeds", nargs="+", type=int, default=list(SEEDS))
     parser.add_argument("--methods", nargs="+", default=list(METHODS), choices=METHODS)
+    parser.add_argument("--chain", default="fput", choices=CHAINS,
+                        help="the FPU-beta chain (default) or the Toda lattice")
     parser.add_argument("--n-trajectories", type=int, default=N_TRAJECTORIES)
     parser.add_argument("--output", type=Path, default=None)
     parser.add_argument("--report", action="store_true", help="only print the saved rows")
@@ -285,14 +300,15 @@ def main(argv=None):
     output.mkdir(parents=True, exist_ok=True)
     if args.one:
         d, seed, method = int(args.one[0]), int(args.one[1]), args.one[2]
-        run_one(d, seed, method, args.n_trajectories, row_path(output, d, seed, method))
+        run_one(args.chain, d, seed, method, args.n_trajectories,
+                row_path(output, args.chain, d, seed, method))
         return
     if not args.report:
         for d in args.sizes:
             for seed in args.seeds:
                 for method in args.methods:
-                    compute(d, seed, method, args.n_trajectories, output)
-    report(args.sizes, args.seeds, output)
+                    compute(args.chain, d, seed, method, args.n_trajectories, output)
+    report(args.chain, args.sizes, args.seeds, output)
 
 
 if __name__ == "__main__":
