@@ -14,7 +14,7 @@ from ._integrate.compiled import KernelModel
 from ._kernels import LANE_ROWS
 from ._least_squares import HamiltonianDesign
 from ._space import ModelSpace, compiled
-from ._state_order import STATE_ORDERS, warn_if_order_looks_swapped
+from ._state_order import ORDER_WORDS, STATE_ORDERS, warn_if_order_looks_swapped
 from ._structure import apply_structure
 from ._trajectories import check_n_states
 from ._warnings import warn
@@ -448,17 +448,21 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
         self._split = (self._separable_parts()
                        if self.separable or self._support_is_separable() else None)
 
-    def _support_is_separable(self):
+    def _kept_terms_on(self):
+        """For each kept term, whether it holds a momentum, and whether it holds a position."""
         d = self.n_features_in_ // 2
         powers = self.powers_[self.support_]
-        return bool(np.all(~np.any(powers[:, :d] != 0, axis=1)
-                           | ~np.any(powers[:, d:] != 0, axis=1)))
+        return np.any(powers[:, :d] != 0, axis=1), np.any(powers[:, d:] != 0, axis=1)
+
+    def _support_is_separable(self):
+        on_p, on_q = self._kept_terms_on()
+        return bool(np.all(~on_p | ~on_q))
 
     def _separable_parts(self):
         """Spaces and coefficients of ``T(p)`` and ``V(q)`` of a separable model."""
         d = self.n_features_in_ // 2
         powers, coef = self.powers_[self.support_], self.coef_[self.support_]
-        on_p = np.any(powers[:, :d] != 0, axis=1)
+        on_p, _ = self._kept_terms_on()
         parts = []
         for terms, variables in ((on_p, slice(0, d)), (~on_p, slice(d, 2 * d))):
             part = ModelSpace(
@@ -469,7 +473,8 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
         return parts
 
     def _after_fit(self, data):
-        check_state_names(self.state_names, self.n_features_in_)
+        check_state_names(self.state_names, self.n_features_in_,
+                          order=f"{ORDER_WORDS[self.state_order]} first")
         super()._after_fit(data)
         warn_if_order_looks_swapped(self, data.states)
         self.energy_trend_, self.energy_trend_z_ = float("nan"), float("nan")

@@ -131,6 +131,8 @@ def warn_if_order_looks_swapped(model, states):
 
 #: The values of ``state_order``.
 STATE_ORDERS = ("pq", "qp")
+#: Which half of the columns comes first, in words, for messages.
+ORDER_WORDS = {"pq": "momenta", "qp": "positions"}
 
 
 def swap_halves(values, axis=-1):

@@ -80,4 +80,4 @@ def test_the_command_names_the_variables_it_is_told(tmp_path, capsys):
     with pytest.raises(SystemExit) as exit_info:
         main(args + ["--names", "a", "b", "c"])
     assert exit_info.value.code == 2
-    assert "--names: must have one name per state variable" in capsys.readouterr().err
+    assert "--names must have one name per state variable" in capsys.readouterr().err

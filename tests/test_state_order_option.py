@@ -255,7 +255,7 @@ def test_the_command_reads_qp_columns_with_order_qp(data, tmp_path, capsys):
         assert exit_info.value.code == 2
     err = capsys.readouterr().err
     assert "--order must be pq (momenta first) or qp (positions first); got 'q,p'" in err
-    assert "--names: must have one name per state variable" in err
+    assert "--names must have one name per state variable" in err
 
 
 def test_partial_fit_reads_each_chunk_in_the_columns_order(data):

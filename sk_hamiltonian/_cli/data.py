@@ -90,11 +90,10 @@ def load_data(args):
     data = _load_data(args)
     if getattr(args, "names", None):
         try:
-            data.names = check_state_names(args.names, len(data.names))
+            data.names = check_state_names(args.names, len(data.names), name="--names",
+                                           order="in the order of the file's columns")
         except ValueError as error:
-            raise UsageError(
-                f"--names: {error}".replace("state_names ", "")
-                .replace("momenta first", "in the order of the file's columns")) from None
+            raise UsageError(str(error)) from None
     if getattr(args, "order", "pq") == "qp":
         if args.data is None:
             raise UsageError(

@@ -80,31 +80,31 @@ def _state_names(model, state_names):
     return swap_names(names) if swapped else names
 
 
-def check_state_names(state_names, n_states):
+def check_state_names(state_names, n_states, *, name="state_names", order="momenta first"):
     """``state_names`` as a list of distinct non-empty strings, one per state variable.
 
-    None passes through. Raises ``ValueError`` naming the argument and what
-    it needs.
+    None passes through. Raises ``ValueError`` naming the argument (``name``:
+    ``"state_names"``, or the command's ``"--names"``) and what it needs, the
+    variables in ``order`` (how the caller's columns are ordered).
     """
     if state_names is None:
         return None
     if isinstance(state_names, str):
         raise ValueError(
-            f"state_names must be a list of {n_states} names, one per state variable (momenta "
-            f"first); got the single string {state_names!r}. Pass e.g. "
-            f"{_default_names(n_states)!r}."
+            f"{name} must be a list of {n_states} names, one per state variable ({order}); "
+            f"got the single string {state_names!r}. Pass e.g. {_default_names(n_states)!r}."
         )
     names = list(state_names)
     if len(names) != n_states:
         raise ValueError(
-            f"state_names must have one name per state variable ({n_states}, momenta "
-            f"first); got {len(names)}."
+            f"{name} must have one name per state variable ({n_states}, {order}); "
+            f"got {len(names)}."
         )
-    bad = [name for name in names if not isinstance(name, str) or not name.strip()]
+    bad = [value for value in names if not isinstance(value, str) or not value.strip()]
     if bad:
-        raise ValueError(f"state_names must be non-empty strings; got {bad[0]!r}.")
+        raise ValueError(f"{name} must be non-empty strings; got {bad[0]!r}.")
     if len(set(names)) != len(names):
-        raise ValueError(f"state_names must be distinct; got {names!r}.")
+        raise ValueError(f"{name} must be distinct; got {names!r}.")
     return names
 
 

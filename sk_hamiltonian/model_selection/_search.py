@@ -23,7 +23,7 @@ from sklearn.utils.validation import check_is_fitted
 from .._derivatives import DerivativeTransformer
 from .._hamiltonian import HamiltonianRegressor
 from .._inspection.terms import check_state_names
-from .._state_order import STATE_ORDERS, swap_halves, swap_raw, swap_space
+from .._state_order import ORDER_WORDS, STATE_ORDERS, swap_halves, swap_raw, swap_space
 from .._trajectories import check_trajectories
 from ._degrees import failure_reason, score_fold, search_unit
 from ._finalists import choose
@@ -365,7 +365,8 @@ class HamiltonianSearchCV(BaseEstimator):
         start = time.perf_counter()
         trajectories, _ = check_trajectories(X, min_times=3)
         n_states = trajectories[0].shape[1] - (1 if self.dt is None else 0)
-        check_state_names(self.state_names, n_states)
+        check_state_names(self.state_names, n_states,
+                          order=f"{ORDER_WORDS[self.state_order]} first")
         degrees = self._check_values("degrees", self.degrees, integer=True, low=1)
         thresholds = self._check_values("thresholds", self.thresholds, integer=False, low=0)
         fit_on = self._check_fit_on()
