@@ -9,7 +9,8 @@ it, and save the model for later.
 
 The file is a CSV with one row per sample: a ``trajectory`` column that
 numbers the trajectories, then the momenta ``p..`` and the positions ``q..``
-(first all momenta, then all positions), sampled every ``dt``. The rows of a
+(first all momenta, then all positions; the last section reads positions
+first, under names of your own), sampled every ``dt``. The rows of a
 trajectory are contiguous and in time order; trajectories may have different
 lengths.
 """
@@ -162,5 +163,21 @@ save(model, workdir / "model.skh", provenance={"data": path.name})
 loaded = load(workdir / "model.skh")
 same = np.array_equal(loaded[-1].hamiltonian(runs["avf"]), energy["AVF"])
 print(f"saved {workdir / 'model.skh'}; the loaded model gives the same H~: {same}")
+
+# %%
+# Columns in your own order, under your own names
+# ------------------------------------------------
+# Many lab files put the positions first. ``state_order="qp"`` reads the
+# columns as ``(q, p)`` and gives every state-shaped output back in that
+# order; ``state_names`` (in the columns' order) names the variables in
+# formulas, reports and model files. The model inside is the same.
+X_qp = [trajectory[:, ::-1] for trajectory in X]  # as a file "trajectory,theta,L" would give
+named = make_pipeline(
+    DerivativeTransformer(dt=DT, degree=best["derivativetransformer__degree"]),
+    HamiltonianRegressor(degree=best["hamiltonianregressor__degree"], state_order="qp",
+                         state_names=["theta", "L"]),
+).fit(X_qp)
+print(named[-1].equations())
+print("the same coefficients:", np.allclose(named[-1].coef_, regressor.coef_))
 
 shutil.rmtree(workdir)  # the stand-in file and the model; keep yours
