@@ -336,6 +336,19 @@ def test_a_transposed_npz_array_is_named_as_such(tmp_path, capsys, pendulum_data
     assert "time stamps" not in line
 
 
+def test_a_ragged_npz_is_refused_with_the_formats_that_hold_it(tmp_path, capsys, pendulum_data):
+    # np.savez turns trajectories of different lengths into an object array,
+    # which only unpickling could read.
+    path = tmp_path / "ragged.npz"
+    ragged = np.empty(2, dtype=object)
+    ragged[0], ragged[1] = pendulum_data[0], pendulum_data[1][:20]
+    np.savez(path, trajectories=ragged)
+    line = error_of([str(path), "--dt", "0.02", "--output", str(tmp_path / "out")], capsys)
+    assert "object array (trajectories of different lengths?)" in line
+    assert ".csv with a trajectory column" in line
+    assert "allow_pickle" not in line
+
+
 def test_show_prints_each_string_from_the_file_on_its_own_line(tmp_path, capsys):
     from sk_hamiltonian import HamiltonianRegressor, save
 

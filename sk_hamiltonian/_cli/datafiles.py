@@ -101,6 +101,17 @@ def _load_npz(path):
             times = archive["times"] if "times" in archive else None
     except UsageError:
         raise
+    except ValueError as error:
+        if "allow_pickle" not in str(error):
+            raise UsageError(f"cannot read {path} as .npz: {error}") from None
+        # An object array: what np.savez makes of trajectories of different
+        # lengths. Loading it would unpickle, which can run code from the file.
+        raise UsageError(
+            f"{path} holds an object array (trajectories of different lengths?), which the "
+            f"command does not unpickle: save them as one .csv with a trajectory column "
+            f"(ragged lengths allowed), or pad or cut them to one length and save "
+            f"np.stack(trajectories) as 'trajectories'"
+        ) from None
     except Exception as error:  # a corrupt archive: report it in one line
         raise UsageError(f"cannot read {path} as .npz: {error}") from None
     if X.ndim != 3:
