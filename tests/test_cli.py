@@ -298,6 +298,16 @@ def test_error_bad_options(tmp_path, capsys, pendulum_data):
     assert "Too few data for 1000 folds" in line and "fewer folds (--cv)" in line
 
 
+def test_error_too_few_data_at_the_fewest_folds(tmp_path, capsys):
+    # --cv 2 is the least: the message must not send the user to a lower --cv.
+    X = make_trajectories(single_pendulum(), 1, 41, dt=0.01, noise=0.02, random_state=0)
+    path = tmp_path / "one.npz"
+    np.savez(path, trajectories=X)
+    line = error_of([str(path), "--dt", "0.01", "--cv", "2"], capsys)
+    assert "Too few data for 2 folds" in line
+    assert "fewer folds" not in line and "2 folds are already the fewest (--cv)" in line
+
+
 def test_help_documents_the_options(capsys):
     with pytest.raises(SystemExit) as exit_info:
         main(["--help"])

@@ -134,3 +134,13 @@ def test_the_trajectories_judge_a_law_against_its_taylor_series():
                                difference_noise_model(list(X)))
     assert judgement["best"] == 1
     assert judgement["rss"][1] < judgement["rss"][0]
+
+
+def test_no_space_fits_the_data_says_why():
+    # One record of 170 samples in 2 folds cannot hold the 495 unknowns of
+    # degree 30 at any space: the error names the degree and the rows short.
+    X = make_trajectories(single_pendulum(), 1, 170, dt=0.01, noise=0.02, random_state=0)
+    with pytest.raises(ValueError, match="No model space could be set up") as info:
+        small_search(0.01, cv=2, degrees=(30,), fit_on=("derivatives",)).fit(X)
+    assert "degree 30 has 495 unknowns" in str(info.value)
+    assert "lower degrees" in str(info.value)

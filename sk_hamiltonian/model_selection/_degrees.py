@@ -58,7 +58,17 @@ def search_unit(Xt, folds, spaces, fit_on, degrees, thresholds, damping, domain,
                     failures.append(str(error))
                     break
             size = problem.n_unknowns(degree)
-            if ROWS_PER_UNKNOWN * size > problem.n_rows * (n_folds - 1) / n_folds:
+            n_train = problem.n_rows * (n_folds - 1) / n_folds
+            if ROWS_PER_UNKNOWN * size > n_train:
+                if best is None:
+                    # The space got no candidate at all: say why, or an
+                    # error downstream ("no model space could be set up")
+                    # would carry no reason.
+                    failures.append(
+                        f"degree {degree} has {size} unknowns, which need "
+                        f"{ROWS_PER_UNKNOWN * size} rows ({ROWS_PER_UNKNOWN} per unknown), "
+                        f"but a training fold holds about {int(n_train)}: give more or "
+                        f"longer trajectories, or lower degrees.")
                 break
             problems.append(problem)
             found = [candidate(problem, degree, threshold, n_folds)

@@ -240,7 +240,10 @@ def _segmented(pieces, origin, n_splits, cv, report):
             f"fold ({MIN_PER_FOLD * n_splits} in all), or cuts longer records into "
             f"{SEGMENTS_PER_FOLD} segments of at least {MIN_SEGMENT_SAMPLES} samples per fold "
             f"({SEGMENTS_PER_FOLD * n_splits * MIN_SEGMENT_SAMPLES} samples in all). Give "
-            f"more or longer trajectories, or fewer folds (cv)."
+            # Two folds are the fewest: suggesting fewer would send the user
+            # in a circle.
+            + ("more or longer trajectories, or fewer folds (cv)." if n_splits > 2 else
+               "more or longer trajectories: 2 folds are already the fewest (cv).")
         )
     segments, where = [], []
     for P, (k, first, _) in zip(pieces, origin):
