@@ -18,7 +18,7 @@ from ._differentiation import (
     windowed_uniform,
 )
 from ._trajectories import check_n_states, check_trajectories, pack_derivatives
-from ._outliers import MIN_TRAJECTORIES, listed, robust_limit
+from ._outliers import MIN_TRAJECTORIES, NUMBERING, listed, robust_limit
 from ._warnings import warn
 from .exceptions import OutlierWarning, SmoothingWarning
 
@@ -298,12 +298,13 @@ class DerivativeTransformer(TransformerMixin, BaseEstimator):
                 OutlierWarning(
                     f"DerivativeTransformer: the least-squares polynomials leave "
                     f"{outliers.size} of {len(observed)} trajectories with residuals far "
-                    f"above the rest, trajectories {listed(outliers)} (numbered as in X): "
+                    f"above the rest, trajectories {listed(outliers)} ({NUMBERING}): "
                     f"up to {np.nanmax(ratio[outliers]):.3g} times the noise level estimated "
                     f"from all the data, against {np.nanmedian(ratio.max(axis=1)):.3g} for "
-                    f"the median trajectory. Such trajectories are likely corrupt (spikes, jumps, "
-                    f"samples out of order, or another system); no window or degree fits "
-                    f"them. Inspect them, and drop or repair them before fitting (their "
+                    f"the median trajectory. Such trajectories are often corrupt (spikes, jumps, "
+                    f"samples out of order, or another system), which no window or degree "
+                    f"fits, but may be sound and move much faster than the rest. Inspect "
+                    f"them, and drop or repair those that are corrupt before fitting (their "
                     f"indices are in this warning's `trajectories` attribute).",
                     trajectories=outliers,
                 ),

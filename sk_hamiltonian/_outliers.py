@@ -40,6 +40,14 @@ MIN_TRAJECTORIES = 10
 LISTED = 20
 # From median absolute deviation to standard deviation, for normal data.
 MAD_TO_STD = 1.4826
+# How a message numbers the trajectories. An estimator only sees the X its
+# fit was given: inside a cross-validation fold (GridSearchCV, cross_val_score)
+# or a resample that is a subset of the user's X, and nothing tells it so; it
+# cannot claim the user's numbering.
+NUMBERING = (
+    "numbered within the X this fit was given; in a cross-validation fold or a resample "
+    "that is a subset of your data, so check them with a fit on the full data"
+)
 
 
 def robust_limit(values, n_mads):
@@ -113,14 +121,16 @@ def warn_residual_outliers(model, data):
     warn(
         OutlierWarning(
             f"{name}: {outliers.size} of {n} trajectories leave residuals far outside the "
-            f"rest, trajectories {listed(outliers)} (numbered as in X): the learned field "
+            f"rest, trajectories {listed(outliers)} ({NUMBERING}): the learned field "
             f"disagrees with their estimated derivatives by up to {worst:.2g} times their "
-            f"own size, against a median of {median:.2g}. Such trajectories are often "
-            f"corrupt (reversed in time, spiky, mislabelled, or from another system) and "
-            f"pull the fit everywhere. Inspect them, and refit without them if they are "
-            f"(their indices are in this warning's `trajectories` attribute); if the "
-            f"DerivativeTransformer named trajectories it could not de-noise, drop those "
-            f"first.",
+            f"own size, against a median of {median:.2g}. Such trajectories may be corrupt "
+            f"(reversed in time, spiky, mislabelled, or from another system), which pulls "
+            f"the fit everywhere, or sound but where the model fits worst (the highest "
+            f"energies, near a separatrix, at the edge of the data). Inspect them (their "
+            f"indices are in this warning's `trajectories` attribute): refit without them "
+            f"only if they are corrupt; if they are sound, a higher degree or more data near "
+            f"them may fit them. If the DerivativeTransformer named trajectories it could "
+            f"not de-noise, drop those first.",
             trajectories=outliers,
         ),
         OutlierWarning,

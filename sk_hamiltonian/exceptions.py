@@ -99,16 +99,20 @@ class OutlierWarning(UserWarning):
     :class:`~sk_hamiltonian.VectorFieldRegressor`: their derivatives disagree
     with the learned field; by :class:`~sk_hamiltonian.DerivativeTransformer`:
     the de-noising polynomials cannot follow them). Such trajectories are
-    often corrupt (reversed in time, spiky, from another system); inspect
-    them, and drop or repair them. The message names them by their index in
-    the input, and so does the attribute ``trajectories``.
+    often corrupt (reversed in time, spiky, from another system), but may be
+    sound and where the model fits worst (the highest energies, near a
+    separatrix); inspect them, and drop or repair those that are corrupt.
+    The message names them by their index in the X the fit was given, and
+    so does the attribute ``trajectories``: inside a cross-validation fold
+    (e.g. :class:`~sklearn.model_selection.GridSearchCV`) that X is the
+    fold's subset of the user's, so the indices are not the user's.
 
     Parameters
     ----------
     message : str
         Which trajectories, why, and what to do.
     trajectories : sequence of int, default=()
-        Their indices in the input (the order of ``X``).
+        Their indices in the X the fit was given.
 
     Attributes
     ----------

@@ -9,6 +9,8 @@ import warnings
 
 import numpy as np
 import pytest
+from sklearn.model_selection import GridSearchCV, KFold
+from sklearn.pipeline import make_pipeline
 
 from sk_hamiltonian import (
     DerivativeTransformer,
@@ -58,8 +60,8 @@ def test_trajectories_played_backwards_are_named_by_the_regressor(seed):
     # Measured over seeds 0-9: 8 to 10 of the 10 named, never a clean one.
     assert len(named & bad) >= 8 and named <= bad
     message = str(warning.message)
-    assert f"trajectories {sorted(named)} (numbered as in X)" in message
-    assert "Inspect them, and refit without them" in message
+    assert f"trajectories {sorted(named)} (numbered within the X this fit was given" in message
+    assert "refit without them only if they are corrupt" in message
     assert warning.filename == __file__
     assert not named_by(caught, "DerivativeTransformer")
 
@@ -71,8 +73,8 @@ def test_spiky_trajectories_are_named_by_the_transformer_not_blamed_on_the_windo
     (warning,) = named_by(caught, "DerivativeTransformer")
     named = set(warning.message.trajectories)
     assert len(named & bad) >= 8 and named <= bad
-    assert "no window or degree fits them" in str(warning.message)
-    assert "drop or repair them" in str(warning.message)
+    assert "no window or degree fits" in str(warning.message)
+    assert "drop or repair those that are corrupt" in str(warning.message)
     assert warning.filename == __file__
     # The other trajectories are fitted as well as the noise allows: no
     # advice to change the window.
@@ -98,3 +100,26 @@ def test_the_baseline_names_them_too_and_few_trajectories_are_not_judged():
     few = X[sorted(bad)[:1] + list(range(20, 28))]
     _, caught = fit_recording(few, n=4)
     assert not [w for w in caught if issubclass(w.category, OutlierWarning)]
+
+
+def test_inside_grid_search_the_numbering_is_the_folds_not_the_users():
+    # Second contact: inside GridSearchCV the regressor sees only the fold's
+    # training trajectories; the warning numbered them "as in X", which
+    # they are not, and called them corrupt.
+    X, bad = garbage("reversed", 0)
+    pipe = make_pipeline(DerivativeTransformer(dt=0.01, degree=5), HamiltonianRegressor(degree=6))
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        GridSearchCV(pipe, {"hamiltonianregressor__degree": [6]}, cv=KFold(2)).fit(X)
+    # The first fold trains on the second half of X: its indices are
+    # shifted by 100 from the user's.
+    (in_fold,) = [w for w in named_by(caught, "HamiltonianRegressor")
+                  if "of 100 trajectories" in str(w.message)
+                  and min(w.message.trajectories) + 100 in bad]
+    named = {k + 100 for k in in_fold.message.trajectories}
+    assert named <= bad and not set(in_fold.message.trajectories) <= bad
+    message = str(in_fold.message)
+    assert "numbered as in X" not in message
+    assert "numbered within the X this fit was given" in message
+    assert "check them with a fit on the full data" in message
+    assert "or sound but where the model fits worst" in message
