@@ -856,8 +856,22 @@ def test_damping_and_joblib_options(tmp_path, capsys):
     model = load(tmp_path / "model.skh")
     assert model[-1].damping and model[-1].damping_[0] > 0
     # The report gives the friction, and never suggests the option in use.
-    assert f"friction: gamma_p = {model[-1].damping_[0]:.4g}" in out
+    friction = f"friction: gamma_p = {model[-1].damping_[0]:.4g}"
+    assert friction in out
     assert "--damping (Hamiltonian" not in out
+    # Second contact: the term count is the readable terms', as in the
+    # refinement's line ("N kept coefficients and the friction"), and the
+    # energy the friction takes is not reported as the integrator's drift.
+    n_terms = model[-1].n_terms_ - 1
+    assert re.search(rf"^chosen: .* -> {n_terms} terms? and the friction \(score", out,
+                     re.M), out
+    assert "H~ drift" not in out
+    assert len(re.findall(r"^  H~ lost to the friction H~\(0\) - H~\(T\), (RK4|AVF): ", out,
+                          re.M)) == 2, out
+    # show names the friction as the report does, not only as damping_.
+    assert main(["show", str(tmp_path / "model.skh")]) == 0
+    shown = capsys.readouterr().out
+    assert re.search(rf"^{re.escape(friction)} \(dp/dt", shown, re.M), shown
     assert "(--joblib; a pickle: loading it runs any code it carries" in out
     import joblib
 

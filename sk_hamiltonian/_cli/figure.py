@@ -107,7 +107,10 @@ def draw_report(path, t, curves, truth, errors, model, rk4, avf, observed, names
     energies = {label: _energy(model, t, run) for label, run in (("RK4", rk4), ("AVF", avf))}
     plot_energy(t, energies, ax=axes["drift"])
     axes["drift"].set_ylabel("|H~(t) - H~(0)|")
-    axes["drift"].set_title("drift of the learned energy H~ along the SP trajectory")
+    axes["drift"].set_title(
+        # With friction H~ falls by design: the panel shows that loss, not a drift.
+        "learned energy H~ lost to the friction along the SP trajectory" if model.damping
+        else "drift of the learned energy H~ along the SP trajectory")
     _legend_below(axes["drift"], ncols=2)
     fig.suptitle(title, fontsize="medium")
     fig.savefig(path, dpi=110)

@@ -24,7 +24,7 @@ from .report import describe_energy_trend, print_choice, print_drift, print_erro
 from .discovery import run_discovery
 from .resampling import band_or_none, resample_chosen
 from .search import run_search
-from .words import counted
+from .words import counted, friction_line
 
 
 def run(args):
@@ -59,10 +59,7 @@ def run(args):
                  or getattr(model, "coef_covariance_", None) is not None)
     print(f"learned: {format_hamiltonian(model, state_names=names, intervals=intervals)}")
     if model.damping:
-        d = len(model.damping_)
-        print("friction: " + ", ".join(
-            f"gamma_{name} = {value:.4g}" for name, value in zip(names[:d], model.damping_))
-            + " (dp/dt = -dH/dq - gamma dH/dp)")
+        print(friction_line(model, names))
     print(
         f"fit time: {result.fit_time:.1f} s for {result.n_fits} "
         f"cross-validation fits and the refit"

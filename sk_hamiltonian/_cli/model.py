@@ -15,6 +15,7 @@ from ..io import ModelFileError, load, read_manifest
 from .datafiles import default_state_names
 from .errors import UsageError, check_positive
 from .outputs import OUTPUTS
+from .words import friction_line
 
 METHODS = ("rk4", "avf", "leapfrog", "yoshida4")
 # Output samples of a simulation when neither --dt nor a training step is known.
@@ -186,6 +187,9 @@ def show(argv):
         resampled = getattr(regressor, "resampled_coef_", None) is not None
         covariance = getattr(regressor, "coef_covariance_", None) is not None
         print(f"learned: {format_hamiltonian(regressor, state_names=names, intervals=resampled or covariance)}")
+        friction = friction_line(regressor, names)
+        if friction is not None:
+            print(friction)
         if covariance:
             print("  (the intervals: the trajectory fit's own, from its covariance "
                   "stored in the file" + (f"; the inclusion counts: "
