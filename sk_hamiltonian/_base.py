@@ -21,7 +21,7 @@ from . import _fit_steps as steps
 from ._distributed import fit_distributed, is_dask
 from ._integrate import make_integrator, simulation
 from ._least_squares import solve
-from ._outliers import warn_residual_outliers
+from ._outliers import listed, warn_residual_outliers
 from ._resampling import RESAMPLE_KINDS, check_resampling, fit_resamples
 from ._scoring import rollout_score
 from ._space import ModelSpace
@@ -32,6 +32,7 @@ from ._streaming import available_with_domain, partial_fit_chunk
 from ._threads import gram_flops, limit_blas
 from ._training_data import training_data
 from ._trajectories import is_trajectory_container, unpack_derivatives
+from ._warnings import warn
 from .exceptions import DomainWarning
 
 # Rows of evaluations done at once, to bound memory (entries of float64).
@@ -380,6 +381,29 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
                 stacklevel=stacklevel,
             )
 
+    def _warn_non_finite(self, values, X, method):
+        """A :class:`DomainWarning` when ``method`` returns NaN or inf for some rows of ``X``.
+
+        ``values`` has one row (or one value) per row of ``X`` (both in any
+        state order). Finite states can still overflow the learned field
+        (a degree-n polynomial at ``|x| = 1e300``); the result then holds NaN
+        or inf, which must not leave a public method unannounced.
+        """
+        bad = ~np.isfinite(values.reshape(values.shape[0], -1)).all(axis=1)
+        if not bad.any():
+            return
+        warn(
+            DomainWarning(
+                f"{method} returned NaN or inf for {bad.sum()} of {bad.size} states of X "
+                f"(rows {listed(np.flatnonzero(bad))}): the learned "
+                f"{'H~' if method == 'hamiltonian' else 'field'} overflows float64 there "
+                f"(largest |X| there {np.max(np.abs(X[bad])):.3g}; the fitted domain is "
+                f"{self.domain_.tolist()}). Pass states within the domain, or drop those "
+                f"rows of the result (np.isfinite)."
+            ),
+            DomainWarning,
+        )
+
     def _check_states(self, X):
         """Validate states of shape (..., n_states); return them 2-D and the lead shape."""
         if hasattr(X, "columns") or np.ndim(X) == 2:
@@ -448,6 +472,7 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
         if checked is not None:
             dXdt, n_outside = checked
             self._warn_n_outside(n_outside, X.shape[0])
+            self._warn_non_finite(dXdt, np.asarray(X), "predict")
             return dXdt
         if is_trajectory_container(X):
             states = unpack_derivatives(X).states
@@ -456,7 +481,12 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
             return [self.predict(s) for s in states]
         X = self._to_model(self._validate_states(X))
         self._warn_outside(X)
-        return self._to_model(self._vector_field(X))
+        # numpy's "invalid value in matmul" would name neither X nor the
+        # cause: the warning below does.
+        with np.errstate(over="ignore", invalid="ignore"):
+            dXdt = self._vector_field(X)
+        self._warn_non_finite(dXdt, X, "predict")
+        return self._to_model(dXdt)
 
     def _checked_prediction(self, X):
         """``(dXdt, n_outside)`` of a few states in one compiled call, or None.

@@ -592,7 +592,10 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
         flat, lead = self._check_states(X)
         flat = self._to_model(flat)
         self._warn_outside(flat)
-        return self._hamiltonian(flat).reshape(lead)
+        with np.errstate(over="ignore", invalid="ignore"):
+            H = self._hamiltonian(flat)
+        self._warn_non_finite(H, flat, "hamiltonian")
+        return H.reshape(lead)
 
     def equations(self, *, state_names=None, max_terms=8, intervals=False):
         """The learned Hamiltonian as a formula, ``"H~ = c1 t1 + c2 t2 + ... + const"``.

@@ -42,6 +42,9 @@ class DomainWarning(UserWarning):
 
     A polynomial model is only trusted inside its domain; outside, Legendre
     polynomials grow like ``|x|**degree`` and predictions degrade quickly.
+    Also raised when ``predict`` or ``hamiltonian`` return NaN or inf: the
+    states are so large that the learned polynomial overflows float64; the
+    message names the rows of ``X``.
     """
 
 

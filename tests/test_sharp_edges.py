@@ -210,3 +210,34 @@ def test_negative_trajectory_weight_names_the_argument():
     with pytest.raises(ValueError, match=r"^sample_weight must be non-negative \(one weight per "
                                          r"trajectory; 0 leaves it out\); got -0\.5 at index 5\."):
         pipe.fit(X, hamiltonianregressor__sample_weight=weight)
+
+
+@pytest.mark.parametrize("Regressor", [HamiltonianRegressor, VectorFieldRegressor])
+def test_states_that_overflow_the_field_say_nan_was_returned(pendulum, Regressor):
+    # Second contact: predict at 1e300 returned NaN with only the domain
+    # warning (which says "not trusted", not "NaN").
+    X, y, _ = pendulum
+    model = Regressor(degree=6).fit(X, y)
+    states = np.array([[0.1, 0.2], [1e300, 1e300], [0.3, -0.1]])
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        dXdt = model.predict(states)
+    assert not np.isfinite(dXdt[1]).all() and np.isfinite(dXdt[[0, 2]]).all()
+    said = [w for w in caught if "returned NaN or inf" in str(w.message)]
+    assert len(said) == 1 and issubclass(said[0].category, DomainWarning)
+    assert str(said[0].message).startswith(
+        "predict returned NaN or inf for 1 of 3 states of X (rows [1]): the learned field "
+        "overflows float64 there (largest |X| there 1e+300")
+    assert said[0].filename == __file__
+    # numpy's own "invalid value encountered" names neither X nor the cause.
+    assert not [w for w in caught if issubclass(w.category, RuntimeWarning)]
+
+
+def test_hamiltonian_at_states_that_overflow_says_nan_was_returned(pendulum):
+    *_, model = pendulum
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        H = model.hamiltonian(np.array([[0.1, 0.2], [1e300, 1e300]]))
+    assert np.isfinite(H[0]) and not np.isfinite(H[1])
+    (said,) = [w for w in caught if "returned NaN or inf" in str(w.message)]
+    assert str(said.message).startswith("hamiltonian returned NaN or inf for 1 of 2 states of X")
