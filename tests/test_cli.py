@@ -308,6 +308,19 @@ def test_error_too_few_data_at_the_fewest_folds(tmp_path, capsys):
     assert "fewer folds" not in line and "2 folds are already the fewest (--cv)" in line
 
 
+
+def test_error_too_few_rows_for_every_space_says_why(tmp_path, capsys):
+    # Second contact: "No model space could be set up on the screening
+    # layout." came with no reason.
+    X = make_trajectories(single_pendulum(), 1, 170, dt=0.01, noise=0.02, random_state=0)
+    path = tmp_path / "one.npz"
+    np.savez(path, trajectories=X)
+    line = error_of([str(path), "--dt", "0.01", "--cv", "2", "--degrees", "30", "--output",
+                     str(tmp_path / "out")], capsys)
+    assert "No model space could be set up" in line
+    assert "degree 30 has 495 unknowns" in line and "lower degrees (--degrees)" in line
+
+
 def test_help_documents_the_options(capsys):
     with pytest.raises(SystemExit) as exit_info:
         main(["--help"])

@@ -143,4 +143,4 @@ def test_no_space_fits_the_data_says_why():
     with pytest.raises(ValueError, match="No model space could be set up") as info:
         small_search(0.01, cv=2, degrees=(30,), fit_on=("derivatives",)).fit(X)
     assert "degree 30 has 495 unknowns" in str(info.value)
-    assert "lower degrees" in str(info.value)
+    assert "lower degrees (degrees)" in str(info.value)

@@ -61,7 +61,8 @@ def run_discovery(args, data):
     try:
         warned, fit_time = fit_recording_warnings(search, data)
     except ValueError as error:
-        message = " ".join(str(error).split())
+        # The search names its own parameters; the command's options differ.
+        message = " ".join(str(error).split()).replace("(degrees)", "(--degrees)")
         if "`domain`" in message:
             message += (
                 f" On the command line: one --domain LOW HIGH per state variable, in the order "

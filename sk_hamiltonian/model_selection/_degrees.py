@@ -68,7 +68,7 @@ def search_unit(Xt, folds, spaces, fit_on, degrees, thresholds, damping, domain,
                         f"degree {degree} has {size} unknowns, which need "
                         f"{ROWS_PER_UNKNOWN * size} rows ({ROWS_PER_UNKNOWN} per unknown), "
                         f"but a training fold holds about {int(n_train)}: give more or "
-                        f"longer trajectories, or lower degrees.")
+                        f"longer trajectories, or lower degrees (degrees).")
                 break
             problems.append(problem)
             found = [candidate(problem, degree, threshold, n_folds)
