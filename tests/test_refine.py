@@ -197,7 +197,7 @@ def test_padded_groups_fit_as_groups_of_one_length():
     np.testing.assert_allclose(a["theta"], b["theta"], rtol=1e-7)
 
 
-def test_long_records_are_cut_where_the_model_grows_errors_or_spans_many_periods():
+def test_long_records_are_cut_into_equal_spans_and_where_the_model_grows_errors():
     from sk_hamiltonian._trajectory_fit.segments import (
         MAX_GROWTH,
         MIN_SEGMENT_SAMPLES,
@@ -206,12 +206,17 @@ def test_long_records_are_cut_where_the_model_grows_errors_or_spans_many_periods
 
     t = np.linspace(0.0, 10.0, 1001)
     Y = np.zeros((1001, 2))
-    # Short against the span: whole.
-    _, pieces, _ = shooting_segments([t], [Y], max_duration=5.0)
+    # Within the span: whole.
+    _, pieces, _ = shooting_segments([t], [Y], max_duration=10.0)
     assert len(pieces) == 1
-    # More than four spans: cut into pieces of at most one span.
-    times, _, owner = shooting_segments([t], [Y], max_duration=2.0)
-    assert len(times) == 5 and all(s[-1] - s[0] <= 2.0 for s in times)
+    # Longer: as few equal pieces as keep each within the span (four of 2.5,
+    # not three of 3 and a remainder of 1).
+    times, _, owner = shooting_segments([t], [Y], max_duration=3.0)
+    spans = [s[-1] - s[0] for s in times]
+    assert len(times) == 4 and max(spans) <= 3.0
+    # The pieces partition the samples, so each spans its first to last sample:
+    # a step or a few short of 2.5 at the cuts.
+    np.testing.assert_allclose(spans, 2.5, atol=0.04)
     assert np.all(owner == 0)
     # A growth rate of 1: a piece ends where exp(its integral) reaches MAX_GROWTH.
     times, _, _ = shooting_segments([t], [Y], max_duration=np.inf, rates=[np.ones(1001)])

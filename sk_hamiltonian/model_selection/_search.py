@@ -102,8 +102,8 @@ class HamiltonianSearchCV(BaseEstimator):
     4. **Refine** (``refine="trajectories"``) the chosen model, refitted on
        all the data: the coefficients of its kept terms are fitted to the
        raw trajectories themselves, each simulated from an initial state of
-       its own (long records in segments no longer than half a period of the
-       model, nor than its instability allows), weighted by a noise model
+       its own (long records in equal segments of at most two periods of the
+       model, shorter where its instability requires), weighted by a noise model
        ``a_i + b_i x_i^2`` per variable (the output-error estimate). The
        result is first checked on data it was not fitted on: with every
        other fold from the second held out (two of five), the least-squares
