@@ -23,7 +23,8 @@ its escape energy); two pendula coupled by a spring, ``(p1^2 + p2^2)/2 - cos
 q1 - cos q2 + (q1 - q2)^2/4``, whose law is sparse only in the mixed space.
 
 Record shapes: ``many`` short bursts (the scene's study setting), ``few``
-records (5 x 801 samples) and ``one`` record (1 x 4001 samples), initial
+records (5 x 801 samples) and ``one`` record (1 x 4001 samples), and for
+Henon-Heiles ``three`` records of 2 001 samples (``--table long``), initial
 states drawn from the scene's box (Henon-Heiles' long records from states
 below 70 % of its escape energy, so that they stay bounded).
 
@@ -40,6 +41,7 @@ Run::
 
     python benchmarks/robustness_study.py --table noise      # the noise sweep
     python benchmarks/robustness_study.py --table shapes     # record shapes
+    python benchmarks/robustness_study.py --table long       # Henon-Heiles, 3 x 2001
     python benchmarks/robustness_study.py --table folds      # fold splits
     python benchmarks/robustness_study.py --table spikes     # dropped readings
     python benchmarks/robustness_study.py --report           # tables from the saved rows
@@ -104,7 +106,7 @@ SCENES = {
 }
 for _cfg in SCENES.values():
     _cfg["terms"] = set(_cfg["truth"])
-SHAPES = {"many": None, "few": (5, 801), "one": (1, 4001)}
+SHAPES = {"many": None, "few": (5, 801), "one": (1, 4001), "three": (3, 2001)}
 NOISES = ["0", "add0.5", "add2", "add8", "add20", "mult0.5", "mult2", "mult8", "mult20"]
 METHODS = ("search", "sindy", "sindy-weak")
 TABLES = {
@@ -112,6 +114,8 @@ TABLES = {
     "noise": (["pendulum", "spring"], ["many"], NOISES, range(5), METHODS),
     "shapes": (list(SCENES), list(SHAPES), ["add2"], range(3), METHODS),
     "coupled": (["coupled_pendula"], ["many"], ["add2", "mult2"], range(5), METHODS),
+    # The project issue's long-record case: Henon-Heiles as three records of 2 001.
+    "long": (["henon_heiles"], ["three"], ["add2"], range(3), METHODS),
 }
 FOLD_CASES = [("spring", "0"), ("spring", "add1"), ("spring", "add3"), ("pendulum", "add8"),
               ("henon_heiles", "add2")]
