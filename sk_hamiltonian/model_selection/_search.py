@@ -193,7 +193,7 @@ class HamiltonianSearchCV(BaseEstimator):
         How stage 3 scores each finalist on the held-out folds (and what
         :meth:`score` returns). None: the regressor's rollout score against
         the held-out raw observations. A scorer name of
-        :func:`sklearn.metrics.get_scorer_names` or a callable
+        ``sklearn.metrics.get_scorer_names()`` or a callable
         ``scorer(estimator, X, y)``: called with the finalist's regressor
         fitted on the other folds, the held-out trajectories' states ``X``
         and their estimated time derivatives ``y`` (both of shape
