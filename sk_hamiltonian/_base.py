@@ -566,7 +566,7 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
         Warns
         -----
         UserWarning
-            With ``method="avf"`` for more than 1000 steps per initial state
+            With ``method="avf"`` for more than 10 000 steps per initial state
             when numba is not installed: each AVF step then costs several
             times an RK4 step, and ``pip install "sk_hamiltonian[fast]"``
             removes that cost.

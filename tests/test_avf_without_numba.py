@@ -19,11 +19,11 @@ def _slow_avf_warnings(method, t, max_step):
 def test_the_threshold_counts_steps_not_output_times(monkeypatch):
     monkeypatch.setattr(sk_hamiltonian._numba, "_NUMBA", False)
     limit = simulation.SLOW_AVF_STEPS
-    assert limit == 1000  # as simulate's docstring, the docs and the CLI help say
+    assert limit == 10_000  # as simulate's docstring, the docs and the CLI help say
     t = np.linspace(0.0, 1.0, 11)  # ten intervals of 0.1
     # A hair above 0.1 / n so that each interval takes exactly n steps.
-    assert not _slow_avf_warnings("avf", t, 0.1 / 100 * (1 + 1e-6))  # exactly the limit
-    (warning,) = _slow_avf_warnings("avf", t, 0.1 / 101 * (1 + 1e-6))
+    assert not _slow_avf_warnings("avf", t, 0.1 / 1000 * (1 + 1e-6))  # exactly the limit
+    (warning,) = _slow_avf_warnings("avf", t, 0.1 / 1001 * (1 + 1e-6))
     message = str(warning.message)
     assert warning.category is UserWarning
     assert f"{limit + 10:,}" in message and "method='avf'" in message
