@@ -7,7 +7,6 @@ asks for the integrator and step a fit implies (:func:`default_method`,
 """
 
 import math
-import warnings
 from numbers import Real
 
 import numpy as np
@@ -15,6 +14,7 @@ import numpy as np
 from .._memory import SizeLimitError, bytes_text, describe_limit, memory_limit
 from .._numba import numba_available
 from .._threads import limit_blas
+from .._warnings import warn
 from .driver import integrate, raise_on_failure
 
 # Default integration step as a fraction of the learned system's time scale
@@ -167,8 +167,11 @@ def check_steps(t, max_step, default=None):
     )
 
 
-def warn_slow_avf(method, t, max_step, stacklevel=3):
+def warn_slow_avf(method, t, max_step):
     """Warn once when an AVF run of more than :data:`SLOW_AVF_STEPS` steps runs without numba.
+
+    The warning names the user's line (the package's ``_warnings.warn``),
+    whichever public ``simulate`` (the regressor's, a search's) was called.
 
     Parameters
     ----------
@@ -178,23 +181,20 @@ def warn_slow_avf(method, t, max_step, stacklevel=3):
         Output times (checked).
     max_step : float
         The step taken.
-    stacklevel : int, default=3
-        Of the warning: 3 points at the caller of a ``simulate`` that calls
-        this directly.
     """
     if method != "avf" or numba_available():
         return
     n_steps = count_steps(t, max_step)
     if n_steps <= SLOW_AVF_STEPS:
         return
-    warnings.warn(
+    warn(
         f"method='avf' takes {n_steps:,.0f} integration steps per initial state here, and "
         f"numba is not installed: without it each AVF step solves its implicit equation in "
         f"numpy, several times (3-12x measured) the cost of an RK4 step, about 3-10 ms a step "
         f"even for a model of a few terms. Installing the fast extra, {FAST_EXTRA}, runs the "
-        f"whole simulation compiled and removes that cost; or pass a larger max_step, or method='rk4' where exact "
-        f"conservation of the learned energy is not needed.",
-        UserWarning, stacklevel=stacklevel,
+        f"whole simulation compiled and removes that cost; or pass a larger max_step, or "
+        f"method='rk4' where exact conservation of the learned energy is not needed.",
+        UserWarning,
     )
 
 
