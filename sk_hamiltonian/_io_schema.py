@@ -27,7 +27,7 @@ import numpy as np
 
 from ._io_powers import index_set_problem
 from ._space.builder import check_couplings
-from ._state_order import swap_couplings, swap_halves
+from ._state_order import swap_couplings
 from ._io_values import decode, is_reference, reference
 from ._io_zip import ModelFileError
 
@@ -377,24 +377,20 @@ def check_regressor(where, est, attributes, what):
     periodic = attributes["periodic_"]
     need(bool(np.all(domain[:, 1] > domain[:, 0])), "domain_ has a row with low >= high")
     # The per-state parameters are in the columns' order, the fitted
-    # attributes in the model's (p, q) order: state_order="qp" exchanges them.
-    swapped = est._swapped()
-
-    def in_model_order(value):
-        return swap_halves(value, axis=0) if swapped else value
-
+    # attributes in the model's (p, q) order: state_order="qp" exchanges them
+    # (the estimator's own _state_parameter, as its fit reads them).
     given = (np.zeros(n, dtype=bool) if est.periodic is None
-             else in_model_order(np.asarray(est.periodic).astype(bool)))
+             else np.asarray(est._state_parameter("periodic")).astype(bool))
     need(given.shape == periodic.shape and np.array_equal(given, periodic),
          "periodic_ differs from the periodic parameter")
     mixed = attributes.get("mixed_", np.zeros(n, dtype=bool))
     given = (np.zeros(n, dtype=bool) if getattr(est, "mixed", None) is None
-             else in_model_order(np.asarray(est.mixed).astype(bool)))
+             else np.asarray(est._state_parameter("mixed")).astype(bool))
     need(given.shape == mixed.shape and np.array_equal(given, mixed),
          "mixed_ differs from the mixed parameter")
     need(not np.any(mixed & periodic), "a variable is both periodic_ and mixed_")
     if est.domain is not None:
-        given = in_model_order(np.asarray(est.domain, dtype=float))
+        given = np.asarray(est._state_parameter("domain"), dtype=float)
         need(given.shape == domain.shape and np.array_equal(given, domain),
              "domain_ differs from the domain parameter")
     if name == "HamiltonianRegressor":
@@ -408,7 +404,7 @@ def check_regressor(where, est, attributes, what):
         need(False, f"momentum_degree and separable need an even n_features_in_, not {n}")
     try:
         couplings = check_couplings(
-            swap_couplings(est.couplings, n) if swapped else est.couplings, n)
+            swap_couplings(est.couplings, n) if est._swapped() else est.couplings, n)
     except ValueError as error:
         need(False, str(error))
     problem = index_set_problem(
