@@ -370,9 +370,7 @@ class HamiltonianSearchCV(BaseEstimator):
         degrees = self._check_values("degrees", self.degrees, integer=True, low=1)
         thresholds = self._check_values("thresholds", self.thresholds, integer=False, low=0)
         fit_on = self._check_fit_on()
-        # A user's scorer of the fold-fitted regressor (score_fold); None: the rollout score.
-        scorer = (None if self.scoring is None
-                  else check_scoring(HamiltonianRegressor(), scoring=self.scoring))
+        scorer = self._scorer()
         spaces = None if self.spaces == "auto" else self._check_spaces()
         # state_order="qp": the search runs on the states exchanged into (p, q)
         # order, with the per-state parameters exchanged alike; what it reports
@@ -536,9 +534,9 @@ class HamiltonianSearchCV(BaseEstimator):
             derivative layout, as in the search.
         """
         self._check_refitted("score")
-        if self.scoring is None:
+        scorer = self._scorer()
+        if scorer is None:
             return self.best_estimator_.score(X)
-        scorer = check_scoring(HamiltonianRegressor(), scoring=self.scoring)
         Xt = self.best_estimator_[0].transform(X)
         return score_fold(self.best_estimator_[-1], Xt, scorer)
 
@@ -589,6 +587,12 @@ class HamiltonianSearchCV(BaseEstimator):
         return tags
 
     # ------------------------------------------------------------ checks
+    def _scorer(self):
+        """``scoring`` as a scorer of a fitted regressor (:func:`score_fold`); None: the rollout score."""
+        if self.scoring is None:
+            return None
+        return check_scoring(HamiltonianRegressor(), scoring=self.scoring)
+
     def _check_refitted(self, method):
         check_is_fitted(self)
         if not self.refit:
