@@ -104,6 +104,7 @@ def _message(estimator, space, i, median, period):
     return (
         f"{model}: {argument}={getattr(estimator, argument)!r} {basis}, but along the "
         f"training trajectories its median step between consecutive samples is "
-        f"{median:.3g}, {median / period:.3g} periods, above the limit of a quarter period: the samples cannot resolve one period, the Fourier series aliases, "
-        f"and the fitted model would be poor. {fix}"
+        f"{median:.3g}, {median / period:.3g} periods, above the limit of a quarter period: "
+        f"the samples cannot resolve one period, the Fourier series aliases, and the fitted "
+        f"model would be poor. {fix}"
     )
