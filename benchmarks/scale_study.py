@@ -87,7 +87,63 @@ SEEDS = (0, 1, 2)
 METHODS = ("search", "sindy")
 SINDY_LIBRARY = dict(poly_degree=3)
 QUICK = dict(sizes=(2, 3), seeds=(0,), n_trajectories=60)
-CHAINS = ("fput", "toda")
+CHAINS = ("fput", "toda", "network")
+# The network's graph and constants are drawn once per size from this seed,
+# so that the data seeds vary the data only.
+NETWORK_SEED = 2026
+
+
+def network_constants(d):
+    """On-site stiffness and quartic constants, and the bonds with their springs.
+
+    A random tree joins the ``d`` oscillators (each new one to an earlier one
+    drawn at random, so not a chain), plus ``d // 4`` extra bonds between
+    random pairs: hubs, loops and long-range links the chain lacks.
+    """
+    rng = np.random.default_rng(NETWORK_SEED + d)
+    stiffness = rng.uniform(0.5, 1.5, d)
+    quartic = rng.uniform(0.5, 1.5, d)
+    bonds = {(int(rng.integers(i)), i) for i in range(1, d)}
+    while len(bonds) < d - 1 + d // 4:
+        i, j = sorted(int(k) for k in rng.choice(d, 2, replace=False))
+        bonds.add((i, j))
+    bonds = sorted(bonds)
+    springs = rng.uniform(0.2, 0.6, len(bonds))
+    return stiffness, quartic, bonds, springs
+
+
+def oscillator_network(d):
+    """Anharmonic oscillators coupled pairwise by springs on a random graph.
+
+    ``H = sum_i p_i^2 / 2 + k_i q_i^2 / 2 + b_i q_i^4 / 4 + sum_bonds c_ij (q_i - q_j)^2 / 2``
+    with the constants of :func:`network_constants`; domain ``[-1, 1]**(2d)``.
+    """
+    from sk_hamiltonian.datasets import HamiltonianSystem
+
+    stiffness, quartic, bonds, springs = network_constants(d)
+    i, j = np.array(bonds).T
+
+    def hamiltonian(X):
+        p, q = X[..., :d], X[..., d:]
+        stretch = q[..., i] - q[..., j]
+        return (0.5 * np.sum(p**2, axis=-1)
+                + np.sum(stiffness * q**2 / 2 + quartic * q**4 / 4, axis=-1)
+                + np.sum(springs * stretch**2 / 2, axis=-1))
+
+    def gradient(X):
+        p, q = X[..., :d], X[..., d:]
+        force = springs * (q[..., i] - q[..., j])
+        dq = stiffness * q + quartic * q**3
+        np.add.at(dq, (..., i), force)
+        np.add.at(dq, (..., j), -force)
+        return np.concatenate([p, dq], axis=-1)
+
+    return HamiltonianSystem(
+        f"oscillator network of {d}", hamiltonian, gradient,
+        domain=[[-1.0, 1.0]] * (2 * d),
+        initial_state=np.concatenate([np.zeros(d), np.full(d, 0.4)]),
+        params=dict(n_oscillators=d, bonds=len(bonds)),
+    )
 
 
 def chain_law(d):
@@ -100,12 +156,23 @@ def chain_law(d):
     return terms
 
 
+def network_law(d):
+    """The monomials of ``H`` of :func:`oscillator_network`."""
+    terms = {f"p{i}^2" for i in range(1, d + 1)} | {f"q{i}^{k}" for i in range(1, d + 1)
+                                                    for k in (2, 4)}
+    return terms | {f"q{i + 1}*q{j + 1}" for i, j in network_constants(d)[2]}
+
+
+LAWS = dict(fput=chain_law, toda=None, network=network_law)
+
+
 def chain_data(chain, d, seed, n_trajectories):
     from sklearn.model_selection import KFold
 
     from sk_hamiltonian.datasets import fput_chain, make_trajectories, toda_lattice
 
-    system = fput_chain(d, beta=1.0) if chain == "fput" else toda_lattice(d)
+    system = dict(fput=lambda: fput_chain(d, beta=1.0), toda=lambda: toda_lattice(d),
+                  network=lambda: oscillator_network(d))[chain]()
     X = make_trajectories(system, n_trajectories, N_INTERVALS, DT, noise=NOISE,
                           random_state=seed)
     return system, X, KFold(FOLDS, shuffle=True, random_state=seed)
@@ -132,7 +199,7 @@ def run_search(chain, system, X, cv, d, x0, truth):
     model = search.best_estimator_[-1]
     kept = {term.text for term in hamiltonian_terms(model)}
     # The Toda lattice's potential is not polynomial: no set of monomials is its law.
-    law = chain_law(d) if chain == "fput" else None
+    law = LAWS[chain](d) if LAWS[chain] is not None else None
     return dict(
         cpu_s=seconds, wall_s=search.search_time_,
         exact=kept == law if law is not None else None,
@@ -178,7 +245,7 @@ def run_sindy(chain, system, X, cv, seed, x0, truth):
     anchor = fit_sindy_cv(X, DT, library=SINDY_LIBRARY, folds=folds, seed=seed)
     seconds = time.process_time() - start
     t = np.linspace(0.0, T_END, int(round(T_END / DT)) + 1)
-    exact = sindy_exact(anchor, system) if chain == "fput" else None
+    exact = sindy_exact(anchor, system) if LAWS[chain] is not None else None
     return dict(cpu_s=seconds, wall_s=anchor.fit_time, exact=exact,
                 n_terms=int(anchor.n_terms), params=anchor.params,
                 error=fresh_error(lambda x: anchor.simulate(x, t)[:, -1], x0, truth, []))
@@ -258,7 +325,7 @@ def report(chain, sizes, seeds, output):
                       and "cpu_s" in rows.get((d, r["seed"], "sindy"), {})]
             line = dict(d=d, method=method, seeds=len(done),
                         exact=(f"{sum(r['exact'] for r in done)}/{len(done)}"
-                               if chain == "fput" else "-"),
+                               if LAWS[chain] is not None else "-"),
                         n_terms="/".join(str(r["n_terms"]) for r in done),
                         error=geometric_mean([r["error"] for r in done]),
                         cpu_s=float(np.median([r["cpu_s"] for r in done])),

@@ -127,8 +127,8 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
         on (every other training trajectory held out, then the rest) and
         kept only where it explains them as well as the least-squares fit;
         ``trajectory_fit_status_`` says what happened. Needs the derivative
-        layout, takes no ``sample_weight``, and fits at most 40 kept terms
-        (use a ``threshold``).
+        layout, takes no ``sample_weight``, and fits at most 40 kept terms,
+        or 10 per state variable beyond four (use a ``threshold``).
     threshold : float, default=0.0
         Sparsity threshold. 0 fits every basis function (the paper's fit).
         A positive value runs sequentially thresholded least squares (STLSQ)

@@ -18,18 +18,20 @@ from .solver import (
     fit_trajectories,
     flow,
 )
-from .terms import MAX_TERMS, KeptTerms
+from .terms import MAX_TERMS, TERMS_PER_STATE, KeptTerms, max_terms
 
 __all__ = [
     "FlowModel",
     "KeptTerms",
     "MAX_TERMS",
+    "TERMS_PER_STATE",
     "TrajectoryFitError",
     "difference_noise_model",
     "fit_initial_states",
     "fit_trajectories",
     "flow",
     "group_by_times",
+    "max_terms",
     "growth_rates",
     "refine",
     "segment_duration",

@@ -15,8 +15,18 @@ from .solver import FlowModel
 
 # Kept terms beyond which the trajectory fit is not run: its sensitivities
 # cost (n_samples x n_states x n_terms) per step, and a model of that many
-# terms is not the sparse law the fit is for.
+# terms is not the sparse law the fit is for. Up to two degrees of freedom
+# the cap is MAX_TERMS; beyond, TERMS_PER_STATE per state variable, since a
+# sparse law of a chain or network has a few terms per variable (the FPU
+# chain of eight particles keeps 52, and its trajectory fit is ten times
+# more accurate at T = 20 than least squares).
 MAX_TERMS = 40
+TERMS_PER_STATE = 10
+
+
+def max_terms(n_states):
+    """The most kept terms the trajectory fit takes for states of ``n_states`` variables."""
+    return max(MAX_TERMS, TERMS_PER_STATE * n_states)
 # Relative size below which a readable coefficient is round-off of a zero.
 ROUND_OFF = 1e-10
 
@@ -33,7 +43,7 @@ class KeptTerms:
     ----------
     reason : str or None
         Why the terms cannot be fitted to trajectories (no term, or more than
-        :data:`MAX_TERMS`); None when they can.
+        :func:`max_terms` of the state variables); None when they can.
     n_terms : int
         Number of kept readable terms, the constant aside.
     model : FlowModel
@@ -58,8 +68,9 @@ class KeptTerms:
         self.reason = None
         if self.n_terms == 0:
             self.reason = "no term to refine"
-        elif self.n_terms > MAX_TERMS:
-            self.reason = f"{self.n_terms} terms, more than {MAX_TERMS}"
+        elif self.n_terms > max_terms(space.n_states):
+            self.reason = (f"{self.n_terms} terms, more than {max_terms(space.n_states)} "
+                           f"for {space.n_states} state variables")
         self.key = np.sort(self.terms).tobytes()
         self.damped = bool(regressor.damping)
         self.theta0 = values[self.terms]

@@ -153,7 +153,8 @@ class HamiltonianSearchCV(BaseEstimator):
         Refit the chosen model's kept coefficients to the raw trajectories
         (stage 4), with the friction of a model fitted with ``damping``.
         Skipped, with the reason in ``refinement_``, for a model of more than
-        40 terms, or whose simulation of the training trajectories fails.
+        40 terms (10 per state variable beyond four), or whose simulation of
+        the training trajectories fails.
         None: the least-squares fit of the chosen candidate, as refitted.
     selection : {"simplest", "best_score"}, default="simplest"
         The final choice among the finalists' rollout scores.
