@@ -342,6 +342,56 @@ def report(chain, sizes, seeds, output):
         writer.writerows(rows[key] for key in sorted(rows))
 
 
+def load_rows(output):
+    return [pickle.loads(path.read_bytes()) for path in sorted(output.glob("*_*_*.pkl"))]
+
+
+def chart(output, path):
+    """Draw CPU time, T = 20 error and peak memory against ``d`` for every chain and method.
+
+    One marker per saved row (seed), a line through the medians (geometric
+    means for the error); PySINDy's rows skipped at a size are marked on the
+    time axis's top edge with the reason in the legend.
+    """
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    rows = [r for r in load_rows(output) if "skipped" not in r]
+    fig, axes = plt.subplots(1, 3, figsize=(13, 4.2), constrained_layout=True)
+    colors = dict(fput="C0", toda="C1", network="C2")
+    names = dict(fput="FPU-beta chain", toda="Toda lattice", network="oscillator network")
+    styles = dict(search=("o", "-", "HamiltonianSearchCV"), sindy=("s", "--", "PySINDy CV"))
+    for chain in CHAINS:
+        for method, (marker, line, label) in styles.items():
+            mine = [r for r in rows if r.get("chain", "fput") == chain and r["method"] == method]
+            if not mine:
+                continue
+            sizes = sorted({r["d"] for r in mine})
+            for ax, key, centre in ((axes[0], "cpu_s", np.median),
+                                    (axes[1], "error", geometric_mean),
+                                    (axes[2], "peak_mb", np.max)):
+                ax.plot([r["d"] for r in mine], [r[key] for r in mine], marker, ms=4,
+                        color=colors[chain], alpha=0.35, mfc="none" if method == "sindy" else None)
+                ax.plot(sizes, [centre([r[key] for r in mine if r["d"] == d]) for d in sizes],
+                        line, marker=marker, color=colors[chain],
+                        mfc="none" if method == "sindy" else None,
+                        label=f"{names[chain]}, {label}")
+    titles = ("CPU seconds of the fit (median)", "error at T = 20 (geometric mean)",
+              "peak memory of the process, MB")
+    for ax, title in zip(axes, titles):
+        ax.set_xscale("log", base=2)
+        ax.set_yscale("log")
+        ax.set_xlabel("degrees of freedom d")
+        ax.set_title(title, fontsize=10)
+        ax.set_xticks(SIZES, [str(d) for d in SIZES])
+        ax.grid(True, which="both", alpha=0.3)
+    axes[1].legend(fontsize=7, loc="best")
+    fig.savefig(path, dpi=110)
+    print(f"wrote {path}")
+
+
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     parser.add_argument("--sizes", nargs="+", type=int, default=list(SIZES),
@@ -353,6 +403,8 @@ def main(argv=None):
     parser.add_argument("--n-trajectories", type=int, default=N_TRAJECTORIES)
     parser.add_argument("--output", type=Path, default=None)
     parser.add_argument("--report", action="store_true", help="only print the saved rows")
+    parser.add_argument("--chart", type=Path, default=None, metavar="PNG",
+                        help="draw time, error and memory against d from every saved row")
     parser.add_argument("--quick", action="store_true",
                         help=f"d = {QUICK['sizes']}, seed 0, {QUICK['n_trajectories']} "
                              f"trajectories, in the output's quick folder")
@@ -369,6 +421,9 @@ def main(argv=None):
         d, seed, method = int(args.one[0]), int(args.one[1]), args.one[2]
         run_one(args.chain, d, seed, method, args.n_trajectories,
                 row_path(output, args.chain, d, seed, method))
+        return
+    if args.chart is not None:
+        chart(output, args.chart)
         return
     if not args.report:
         for d in args.sizes:

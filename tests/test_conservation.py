@@ -148,3 +148,25 @@ def test_warnings_point_at_the_users_line():
                 warnings.simplefilter("ignore", ConservationWarning)
                 model.partial_fit(chunk)
         assert {w.filename for w in record} == {__file__}
+
+
+@pytest.mark.parametrize("rate, reading", [
+    (-0.4, "H~ falls along the data (25.13% of its spread per period (0.628)), but not clearly"),
+    (0.4, "H~ rises along the data"),
+])
+def test_a_large_trend_just_under_the_rule_is_reported_as_a_hint(rate, reading):
+    # z = 3.8 does not count (|z| > 4 does), but 25 % per period is not
+    # "within the noise": the report says what it saw.
+    model = SimpleNamespace(energy_trend_=rate, energy_trend_z_=3.8 * np.sign(rate),
+                            time_scale_=0.1, damping_=np.zeros(1))
+    assert trend_verdict(rate, model.energy_trend_z_, model.time_scale_)[0] is None
+    line = describe_energy_trend(model)
+    assert reading in line and "look conservative" not in line
+    assert ("--damping" in line) == (rate < 0)
+    # A small trend at the same z, or a large one at z = 2, still reads conservative.
+    small = SimpleNamespace(energy_trend_=rate / 100, energy_trend_z_=model.energy_trend_z_,
+                            time_scale_=0.1)
+    noise = SimpleNamespace(energy_trend_=rate, energy_trend_z_=2.0 * np.sign(rate),
+                            time_scale_=0.1)
+    assert "look conservative" in describe_energy_trend(small)
+    assert "look conservative" in describe_energy_trend(noise)
