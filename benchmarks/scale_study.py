@@ -22,7 +22,11 @@ data and folds:
 ``--chain toda`` runs the same protocol on the Toda lattice with fixed ends
 (:func:`~sk_hamiltonian.datasets.toda_lattice`, ``V(r) = exp(-r) + r - 1``
 per bond): not polynomial, so no model of either method is exact, and only
-the errors and costs compare.
+the errors and costs compare. ``--chain network`` runs it on anharmonic
+oscillators coupled by springs on a random graph (:func:`oscillator_network`:
+a random tree plus ``d // 4`` extra bonds, constants drawn once per size),
+whose law is exact in monomials like the chain's but whose bonds are not
+between neighbours.
 
 Each row runs in a process of its own, BLAS on one thread, so that its CPU
 time and peak memory are its own:
@@ -37,7 +41,8 @@ time and peak memory are its own:
     The model keeps the law's terms and nothing else: for the search, the
     chain's monomials (``p_i^2``, ``q_i^2``, ``q_i^4``, and ``q_i q_{i+1}``,
     ``q_i^3 q_{i+1}``, ``q_i^2 q_{i+1}^2``, ``q_i q_{i+1}^3`` for each bond
-    between particles); for PySINDy, the nonzero coefficients of the true
+    between particles; the network's ``p_i^2``, ``q_i^2``, ``q_i^4`` and
+    ``q_i q_j`` for each bond); for PySINDy, the nonzero coefficients of the true
     vector field in its library (found by exact least squares on
     noise-free states).
 ``error``
@@ -53,6 +58,8 @@ Run::
     python benchmarks/scale_study.py --report            # the table from the saved rows
     python benchmarks/scale_study.py --quick             # d = 2, 3 on 60 trajectories
     python benchmarks/scale_study.py --chain toda --sizes 4 8 --seeds 0
+    python benchmarks/scale_study.py --chain network --sizes 4 8 16 --seeds 0
+    python benchmarks/scale_study.py --chart scale_study.png   # every saved row, drawn
 
 Each (d, seed, method) is saved in ``--output`` (default
 ``benchmarks/results/scale_study``; ``--quick`` writes to its ``quick``
