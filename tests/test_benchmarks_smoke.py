@@ -270,3 +270,26 @@ def test_sindy_best_pieces():
     raw = np.gradient(X, noisy.dt, axis=1).reshape(-1, 2) - system.vector_field(
         X.reshape(-1, 2))
     assert np.sqrt(np.mean(smoothed ** 2)) < 0.5 * np.sqrt(np.mean(raw ** 2))
+
+
+@pytest.mark.slow
+def test_scale_study_quick_on_the_oscillator_network(tmp_path):
+    env = dict(os.environ, MPLBACKEND="Agg")
+    script = str(BENCHMARKS / "scale_study.py")
+
+    def run(*args):
+        proc = subprocess.run([sys.executable, script, *args, "--output", str(tmp_path)],
+                              capture_output=True, text=True, env=env, timeout=600)
+        assert proc.returncode == 0, (proc.stdout + proc.stderr)[-3000:]
+        return proc.stdout
+
+    run("--quick", "--chain", "network", "--methods", "search")
+    columns, rows = _read(tmp_path / "quick" / "scale_study_network.csv")
+    assert {"d", "seed", "method", "exact", "error", "cpu_s", "peak_mb"} <= set(columns)
+    assert sorted(int(r["d"]) for r in rows) == [2, 3]
+    for r in rows:
+        assert r["method"] == "search" and r["exact"] in ("True", "False"), r
+        assert _finite(r, "error", "cpu_s", "peak_mb") and float(r["cpu_s"]) > 0, r
+    png = tmp_path / "chart.png"
+    assert "wrote" in run("--quick", "--chart", str(png))
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
