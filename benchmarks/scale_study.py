@@ -366,7 +366,7 @@ def chart(output, path):
     import matplotlib.pyplot as plt
 
     rows = [r for r in load_rows(output) if "skipped" not in r]
-    fig, axes = plt.subplots(1, 3, figsize=(13, 4.2), constrained_layout=True)
+    fig, axes = plt.subplots(1, 3, figsize=(13, 5.0), layout="constrained")
     colors = dict(fput="C0", toda="C1", network="C2")
     names = dict(fput="FPU-beta chain", toda="Toda lattice", network="oscillator network")
     styles = dict(search=("o", "-", "HamiltonianSearchCV"), sindy=("s", "--", "PySINDy CV"))
@@ -394,7 +394,8 @@ def chart(output, path):
         ax.set_title(title, fontsize=10)
         ax.set_xticks(SIZES, [str(d) for d in SIZES])
         ax.grid(True, which="both", alpha=0.3)
-    axes[1].legend(fontsize=7, loc="best")
+    handles, labels = axes[1].get_legend_handles_labels()
+    fig.legend(handles, labels, loc="outside lower center", ncol=3, fontsize=8)
     fig.savefig(path, dpi=110)
     print(f"wrote {path}")
 
