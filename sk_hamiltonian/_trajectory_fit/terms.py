@@ -22,13 +22,13 @@ from .solver import FlowModel
 # more accurate at T = 20 than least squares).
 MAX_TERMS = 40
 TERMS_PER_STATE = 10
+# Relative size below which a readable coefficient is round-off of a zero.
+ROUND_OFF = 1e-10
 
 
 def max_terms(n_states):
     """The most kept terms the trajectory fit takes for states of ``n_states`` variables."""
     return max(MAX_TERMS, TERMS_PER_STATE * n_states)
-# Relative size below which a readable coefficient is round-off of a zero.
-ROUND_OFF = 1e-10
 
 
 class KeptTerms:
