@@ -153,10 +153,15 @@ def oscillator_network(d):
     )
 
 
+def onsite_terms(d):
+    """``p_i^2``, ``q_i^2`` and ``q_i^4`` of ``d`` degrees of freedom: the chain's and the network's."""
+    return {f"p{i}^2" for i in range(1, d + 1)} | {f"q{i}^{k}" for i in range(1, d + 1)
+                                                   for k in (2, 4)}
+
+
 def chain_law(d):
     """The monomials of ``H`` of an FPU-beta chain of ``d`` particles with fixed ends."""
-    terms = {f"p{i}^2" for i in range(1, d + 1)} | {f"q{i}^{k}" for i in range(1, d + 1)
-                                                    for k in (2, 4)}
+    terms = onsite_terms(d)
     for i in range(1, d):
         a, b = f"q{i}", f"q{i + 1}"
         terms |= {f"{a}*{b}", f"{a}^3*{b}", f"{a}^2*{b}^2", f"{a}*{b}^3"}
@@ -165,9 +170,7 @@ def chain_law(d):
 
 def network_law(d):
     """The monomials of ``H`` of :func:`oscillator_network`."""
-    terms = {f"p{i}^2" for i in range(1, d + 1)} | {f"q{i}^{k}" for i in range(1, d + 1)
-                                                    for k in (2, 4)}
-    return terms | {f"q{i + 1}*q{j + 1}" for i, j in network_constants(d)[2]}
+    return onsite_terms(d) | {f"q{i + 1}*q{j + 1}" for i, j in network_constants(d)[2]}
 
 
 LAWS = dict(fput=chain_law, toda=None, network=network_law)
@@ -309,11 +312,8 @@ def report(chain, sizes, seeds, output):
     """Print one line per chain length and method; write the CSV of every row."""
     import csv
 
-    rows = {}
-    for path in sorted(output.glob(f"{chain}*_*.pkl")):
-        row = pickle.loads(path.read_bytes())
-        if row["d"] in sizes and row["seed"] in seeds:
-            rows[row["d"], row["seed"], row["method"]] = row
+    rows = {(row["d"], row["seed"], row["method"]): row for row in load_rows(output, chain)
+            if row["d"] in sizes and row["seed"] in seeds}
     keys = ["d", "method", "seeds", "exact", "n_terms", "error", "cpu_s", "peak_mb",
             "cpu ratio"]
     print("  ".join(f"{k:>10s}" for k in keys))
@@ -349,16 +349,17 @@ def report(chain, sizes, seeds, output):
         writer.writerows(rows[key] for key in sorted(rows))
 
 
-def load_rows(output):
-    return [pickle.loads(path.read_bytes()) for path in sorted(output.glob("*_*_*.pkl"))]
+def load_rows(output, chain=""):
+    """The saved rows of ``chain`` (every chain when empty), in file-name order."""
+    return [pickle.loads(path.read_bytes()) for path in sorted(output.glob(f"{chain}*_*_*.pkl"))]
 
 
 def chart(output, path):
     """Draw CPU time, T = 20 error and peak memory against ``d`` for every chain and method.
 
     One marker per saved row (seed), a line through the medians (geometric
-    means for the error); PySINDy's rows skipped at a size are marked on the
-    time axis's top edge with the reason in the legend.
+    means for the error, the largest for memory). Rows saved as skipped
+    (PySINDy's library too large for the data) are left out.
     """
     import matplotlib
 

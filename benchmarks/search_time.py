@@ -25,14 +25,12 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
 HERE = Path(__file__).resolve().parent
-SCENES = ("pendulum", "henon_heiles", "torsion_pendulum", "double_well")
+sys.path.insert(0, str(HERE))
+import search_study  # noqa: E402
 
 
 def run_one(scene, seed):
     from threadpoolctl import threadpool_limits
-
-    sys.path.insert(0, str(HERE))
-    import search_study
 
     import sk_hamiltonian
     from sk_hamiltonian.inspection import hamiltonian_terms
@@ -51,7 +49,8 @@ def run_one(scene, seed):
 
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
-    parser.add_argument("--scenes", nargs="+", default=list(SCENES), choices=SCENES)
+    scenes = list(search_study.SCENES)
+    parser.add_argument("--scenes", nargs="+", default=scenes, choices=scenes)
     parser.add_argument("--seeds", nargs="+", type=int, default=[0])
     parser.add_argument("--one", nargs=2, metavar=("SCENE", "SEED"), help=argparse.SUPPRESS)
     args = parser.parse_args(argv)

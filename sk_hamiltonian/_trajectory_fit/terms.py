@@ -66,10 +66,11 @@ class KeptTerms:
         self.terms = np.flatnonzero(kept & nonconstant)
         self.n_terms = len(self.terms)
         self.reason = None
+        limit = max_terms(space.n_states)
         if self.n_terms == 0:
             self.reason = "no term to refine"
-        elif self.n_terms > max_terms(space.n_states):
-            self.reason = (f"{self.n_terms} terms, more than {max_terms(space.n_states)} "
+        elif self.n_terms > limit:
+            self.reason = (f"{self.n_terms} terms, more than {limit} "
                            f"for {space.n_states} state variables")
         self.key = np.sort(self.terms).tobytes()
         self.damped = bool(regressor.damping)
