@@ -106,6 +106,24 @@ def test_normal_condition_estimate_beyond_the_exact_size(layout, monkeypatch):
     assert 0.5 * reference.cond_ < estimated.cond_ <= reference.cond_ * (1 + 1e-9)
 
 
+def test_a_deferred_condition_number_is_the_one_computed_with_the_solve(layout, monkeypatch):
+    model = HamiltonianRegressor(degree=4, solver="normal").fit(layout)
+    data = model._training_data(layout, None, None)
+    gram, rhs, _ = steps.normal_equations(model, model._space, data)
+    coef, cond, rank = normal.solve_normal(gram, rhs)
+    lazy_coef, deferred, lazy_rank = normal.solve_normal(gram, rhs, defer_condition=True)
+    assert callable(deferred) and not callable(cond)
+    assert np.array_equal(lazy_coef, coef) and lazy_rank == rank
+    assert normal.resolve_condition(deferred) == cond == model.cond_
+    # A thresholded fit computes the condition number of its last solve only,
+    # the one it reports.
+    calls = []
+    counted = normal._normal_condition
+    monkeypatch.setattr(normal, "_normal_condition", lambda *a: calls.append(1) or counted(*a))
+    sparse_fit = HamiltonianRegressor(degree=4, threshold=0.05, solver="normal").fit(layout)
+    assert sparse_fit.n_iter_ > 1 and len(calls) == 1
+
+
 def test_refinement_against_the_design_improves_an_inaccurate_cholesky(layout):
     # A box three times wider than the data: condition number ~1e3, so the
     # plain normal equations lose digits (error ~ cond**2 * eps) that the

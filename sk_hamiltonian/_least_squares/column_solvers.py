@@ -2,10 +2,13 @@
 
 ``solve(keep, basis=None) -> (u, cond, rank)`` is the least-squares solution
 over the columns of the boolean mask ``keep``, or over the coefficients
-``basis @ u`` of those columns; with the normal equations a new support is a
+``basis @ u`` of those columns (``cond`` may come deferred, as a callable:
+:class:`~.support.Solution` computes it when it is read); with the normal equations a new support is a
 smaller solve on the same Gram matrix, not a new assembly. The support rules
 of :mod:`.support` call it once per support they try.
 """
+
+import functools
 
 import numpy as np
 
@@ -165,15 +168,21 @@ def accumulated_solver(gram, rhs, residual=None):
     Returns
     -------
     solve, column_norms : callable
-        As in :func:`column_solver`.
+        As in :func:`column_solver`, but ``solve`` returns ``cond`` deferred:
+        a callable that computes it
+        (:func:`~sk_hamiltonian._solvers.normal.resolve_condition`).
     """
+
+    # Each solve's condition number is computed only if its Solution's is
+    # read: a thresholded fit reads only the last of its solves'.
+    lazy = functools.partial(solve_normal, defer_condition=True)
 
     def solve(keep, basis=None):
         refine = None if residual is None else residual(keep)
         if basis is None:
             if keep.all():
-                return solve_normal(gram, rhs, refine)
-            return solve_normal(gram[np.ix_(keep, keep)], rhs[keep], refine)
+                return lazy(gram, rhs, refine)
+            return lazy(gram[np.ix_(keep, keep)], rhs[keep], refine)
         # The normal equations of A @ basis: basis^T G basis (G symmetric).
         left = basis.T @ gram[np.ix_(keep, keep)]
         reduced = basis.T @ left.T
@@ -183,7 +192,7 @@ def accumulated_solver(gram, rhs, residual=None):
             def refine(u):
                 return basis.T @ inner(basis @ u)
 
-        return solve_normal(reduced, basis.T @ rhs[keep], refine)
+        return lazy(reduced, basis.T @ rhs[keep], refine)
 
     def column_norms(basis=None):
         if basis is None:

@@ -35,7 +35,7 @@ import numpy as np
 from scipy import sparse
 from sklearn.exceptions import ConvergenceWarning
 
-from .._solvers import solve_nonnegative_tail
+from .._solvers import resolve_condition, solve_nonnegative_tail
 from .column_solvers import accumulated_solver
 
 # Cap on the solves of one thresholded fit (each one shrinks the support).
@@ -56,7 +56,8 @@ class Solution:
         summed over targets, plus the friction unknowns.
     cond, rank : float, int
         Of the last solve (several targets: the largest condition number, and
-        the solved columns less the largest rank deficiency of any target).
+        the solved columns less the largest rank deficiency of any target);
+        ``cond`` is computed when first read if the solve deferred it.
     n_solved : int
         Unknowns of the last solve, the reference of ``rank``.
     n_iter : int
@@ -65,7 +66,13 @@ class Solution:
 
     def __init__(self, coef, support, n_kept, cond, rank, n_solved, n_iter):
         self.coef, self.support, self.n_kept = coef, support, n_kept
-        self.cond, self.rank, self.n_solved, self.n_iter = cond, rank, n_solved, n_iter
+        self._cond, self.rank, self.n_solved, self.n_iter = cond, rank, n_solved, n_iter
+
+    @property
+    def cond(self):
+        """The last solve's condition number (see the class docstring)."""
+        self._cond = resolve_condition(self._cond)
+        return self._cond
 
 
 class SupportRule:

@@ -1,5 +1,6 @@
 """``"normal"``: normal equations accumulated block by block, solved by Cholesky and refined."""
 
+import functools
 import math
 
 import numpy as np
@@ -228,7 +229,7 @@ def _eigen_solve(G, rhs):
     return solution, cond, int(keep.sum())
 
 
-def solve_normal(gram, rhs, residual=None):
+def solve_normal(gram, rhs, residual=None, *, defer_condition=False):
     """Least squares from its normal equations: Cholesky, refined against the design.
 
     Parameters
@@ -244,13 +245,21 @@ def solve_normal(gram, rhs, residual=None):
         QR or SVD solve while the design's condition number is below about
         ``1e7``. None: no refinement (e.g. ``partial_fit``, whose samples
         are gone).
+    defer_condition : bool, default=False
+        Return ``cond`` as a function of no argument that computes it. Its
+        eigenvalues cost several times the Cholesky solve (exact up to
+        ``EXACT_COND_MAX`` unknowns), and a thresholded fit discards the
+        condition numbers of all its solves but the last: deferred, only
+        those read are computed.
 
     Returns
     -------
     coef, cond, rank
         As in :func:`~.dense.solve_dense`; ``cond`` is the square root of the
         condition number of the equilibrated normal matrix (exact up to
-        ``EXACT_COND_MAX`` unknowns, else estimated).
+        ``EXACT_COND_MAX`` unknowns, else estimated), or with
+        ``defer_condition`` a callable returning it (see
+        :func:`resolve_condition`).
     """
     norms = _column_norms(np.diag(gram).copy())
     G = gram / np.outer(norms, norms)
@@ -276,7 +285,13 @@ def solve_normal(gram, rhs, residual=None):
             # accurate: another pass over the design would change nothing.
             if np.linalg.norm(step) <= REFINED * np.linalg.norm(solution):
                 break
-    return _scale(solution, norms), _normal_condition(G, factor), G.shape[0]
+    cond = functools.partial(_normal_condition, G, factor)
+    return _scale(solution, norms), cond if defer_condition else cond(), G.shape[0]
+
+
+def resolve_condition(cond):
+    """The condition number ``cond``, computed first when it was deferred (:func:`solve_normal`)."""
+    return cond() if callable(cond) else cond
 
 
 def solve_streaming(blocks, n_terms):
