@@ -149,7 +149,7 @@ def fit_resamples(estimator, space, data):
     size = design.n_columns**2
     n_groups = max(1, RESAMPLE_ENTRIES // size)
     batch = max(1, RESAMPLE_ENTRIES // size)
-    parts, caught = [], []
+    parts = []
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         for start in range(0, weights.shape[0], batch):
