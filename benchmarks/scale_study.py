@@ -69,6 +69,7 @@ writes ``scale_study.csv``.
 """
 
 import argparse
+import contextlib
 import math
 import os
 import pickle
@@ -233,7 +234,37 @@ def sindy_exact(anchor, system):
     return bool(np.array_equal(anchor.coef != 0, truth))
 
 
-def run_sindy(chain, system, X, cv, seed, x0, truth):
+class CPULimitReached(Exception):
+    """The fit used the CPU seconds it was given (``--sindy-cpu-limit``)."""
+
+
+@contextlib.contextmanager
+def cpu_limit(seconds):
+    """Raise :class:`CPULimitReached` once this process has spent ``seconds`` more CPU seconds.
+
+    The kernel's CPU-time limit (``RLIMIT_CPU``) sends ``SIGXCPU``, turned
+    into the exception; None: no limit.
+    """
+    if seconds is None:
+        yield
+        return
+    import resource
+    import signal
+
+    def stop(signum, frame):
+        raise CPULimitReached
+
+    previous = signal.signal(signal.SIGXCPU, stop)
+    soft, hard = resource.getrlimit(resource.RLIMIT_CPU)
+    resource.setrlimit(resource.RLIMIT_CPU, (math.ceil(time.process_time() + seconds), hard))
+    try:
+        yield
+    finally:
+        resource.setrlimit(resource.RLIMIT_CPU, (soft, hard))
+        signal.signal(signal.SIGXCPU, previous)
+
+
+def run_sindy(chain, system, X, cv, seed, x0, truth, cpu_limit_s=None):
     from math import comb
 
     from search_study import T_END, fresh_error
@@ -243,16 +274,25 @@ def run_sindy(chain, system, X, cv, seed, x0, truth):
     n_samples = X.shape[0] * X.shape[1] * (FOLDS - 1) // FOLDS
     # The search's own rule (two equations per unknown in every fold); each
     # of PySINDy's regressions has one equation per sample.
-    if 2 * n_features > n_samples:
-        return dict(skipped=f"the library has {n_features} functions, the training folds "
-                            f"{n_samples} samples: fewer than two per function")
+    too_few = (f"the library has {n_features} functions, the training folds {n_samples} "
+               f"samples: fewer than two per function")
+    if 2 * n_features > n_samples and cpu_limit_s is None:
+        return dict(skipped=too_few)
     try:
         from sindy_anchor import fit_sindy_cv
     except ImportError as error:
         return dict(skipped=f"PySINDy anchor not importable ({error})")
     folds = [test for _, test in cv.split(X)]
     start = time.process_time()
-    anchor = fit_sindy_cv(X, DT, library=SINDY_LIBRARY, folds=folds, seed=seed)
+    try:
+        with cpu_limit(cpu_limit_s):
+            anchor = fit_sindy_cv(X, DT, library=SINDY_LIBRARY, folds=folds, seed=seed)
+    except CPULimitReached:
+        # Its time is known to exceed the limit: a lower bound, no model.
+        row = dict(unfinished=True, cpu_s=time.process_time() - start)
+        if 2 * n_features > n_samples:
+            row["note"] = too_few + " (run for its time only)"
+        return row
     seconds = time.process_time() - start
     t = np.linspace(0.0, T_END, int(round(T_END / DT)) + 1)
     exact = sindy_exact(anchor, system) if LAWS[chain] is not None else None
@@ -261,7 +301,7 @@ def run_sindy(chain, system, X, cv, seed, x0, truth):
                 error=fresh_error(lambda x: anchor.simulate(x, t)[:, -1], x0, truth, []))
 
 
-def run_one(chain, d, seed, method, n_trajectories, path):
+def run_one(chain, d, seed, method, n_trajectories, path, sindy_cpu_limit=None):
     """One row, in this process: the data, the fit, its measures; saved to ``path``."""
     from threadpoolctl import threadpool_limits
 
@@ -275,7 +315,7 @@ def run_one(chain, d, seed, method, n_trajectories, path):
         if method == "search":
             row = run_search(chain, system, X, cv, d, x0, truth)
         else:
-            row = run_sindy(chain, system, X, cv, seed, x0, truth)
+            row = run_sindy(chain, system, X, cv, seed, x0, truth, sindy_cpu_limit)
     row.update(chain=chain, d=d, seed=seed, method=method, base_mb=base, peak_mb=peak_mb(),
                n_trajectories=n_trajectories)
     path.write_bytes(pickle.dumps(row))
@@ -285,17 +325,18 @@ def row_path(output, chain, d, seed, method):
     return output / f"{chain}{d}_{seed}_{method}.pkl"
 
 
-def compute(chain, d, seed, method, n_trajectories, output):
+def compute(chain, d, seed, method, n_trajectories, output, sindy_cpu_limit=None):
     path = row_path(output, chain, d, seed, method)
     if path.exists():
         return pickle.loads(path.read_bytes())
     started = time.perf_counter()
+    limit = [] if sindy_cpu_limit is None else ["--sindy-cpu-limit", str(sindy_cpu_limit)]
     subprocess.run([sys.executable, str(Path(__file__).resolve()), "--one", str(d), str(seed),
                     method, "--chain", chain, "--n-trajectories", str(n_trajectories),
-                    "--output", str(output)], check=True)
+                    "--output", str(output), *limit], check=True)
     row = pickle.loads(path.read_bytes())
-    shown = {k: row[k] for k in ("cpu_s", "peak_mb", "exact", "n_terms", "error", "skipped")
-             if k in row}
+    shown = {k: row[k] for k in ("cpu_s", "peak_mb", "exact", "n_terms", "error", "skipped",
+                                 "unfinished") if k in row}
     print(f"{chain} d={d} seed {seed} {method} ({time.perf_counter() - started:.0f} s wall): {shown}",
           flush=True)
     return row
@@ -321,9 +362,17 @@ def report(chain, sizes, seeds, output):
         for method in METHODS:
             done = [rows[d, s, method] for s in seeds if (d, s, method) in rows]
             skipped = [r for r in done if "skipped" in r]
-            done = [r for r in done if "skipped" not in r]
+            unfinished = [r for r in done if r.get("unfinished")]
+            done = [r for r in done if "skipped" not in r and not r.get("unfinished")]
             if skipped and not done:
                 print(f"{d:>10d}  {method:>10s}  skipped: {skipped[0]['skipped']}")
+            for r in unfinished:
+                # Its time is a lower bound, so the search's ratio an upper one.
+                search = rows.get((d, r["seed"], "search"), {})
+                bound = (f"; the search's CPU ratio at most {search['cpu_s'] / r['cpu_s']:.3g}"
+                         if "cpu_s" in search else "")
+                print(f"{d:>10d}  {method:>10s}  seed {r['seed']}: stopped unfinished after "
+                      f"{r['cpu_s']:.0f} CPU s, {r['peak_mb']:.0f} MB{bound}")
             if not done:
                 continue
             # The search's CPU time over PySINDy's, on the same data and folds.
@@ -341,7 +390,7 @@ def report(chain, sizes, seeds, output):
             print("  ".join(f"{line[k]:>10.4g}" if isinstance(line[k], float)
                             else f"{line[k]!s:>10s}" for k in keys))
     fields = ["d", "seed", "method", "n_trajectories", "exact", "n_terms", "error", "cpu_s",
-              "wall_s", "base_mb", "peak_mb", "skipped"]
+              "wall_s", "base_mb", "peak_mb", "skipped", "unfinished"]
     name = "scale_study.csv" if chain == "fput" else f"scale_study_{chain}.csv"
     with open(output / name, "w", newline="") as handle:
         writer = csv.DictWriter(handle, fieldnames=fields, extrasaction="ignore")
@@ -359,14 +408,18 @@ def chart(output, path):
 
     One marker per saved row (seed), a line through the medians (geometric
     means for the error, the largest for memory). Rows saved as skipped
-    (PySINDy's library too large for the data) are left out.
+    (PySINDy's library too large for the data) are left out; runs stopped
+    unfinished (``--sindy-cpu-limit``) are drawn on the time panel only, as
+    triangles pointing up: their time is a lower bound.
     """
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    rows = [r for r in load_rows(output) if "skipped" not in r]
+    saved = [r for r in load_rows(output) if "skipped" not in r]
+    rows = [r for r in saved if not r.get("unfinished")]
+    bounds = [r for r in saved if r.get("unfinished")]
     fig, axes = plt.subplots(1, 3, figsize=(13, 5.0), layout="constrained")
     colors = dict(fput="C0", toda="C1", network="C2")
     names = dict(fput="FPU-beta chain", toda="Toda lattice", network="oscillator network")
@@ -386,6 +439,12 @@ def chart(output, path):
                         line, marker=marker, color=colors[chain],
                         mfc="none" if method == "sindy" else None,
                         label=f"{names[chain]}, {label}")
+    for chain in CHAINS:
+        mine = [r for r in bounds if r.get("chain", "fput") == chain]
+        if mine:
+            axes[0].plot([r["d"] for r in mine], [r["cpu_s"] for r in mine], "^", ms=7,
+                         color=colors[chain], mfc="none",
+                         label=f"{names[chain]}, PySINDy CV stopped unfinished (at least)")
     titles = ("CPU seconds of the fit (median)", "error at T = 20 (geometric mean)",
               "peak memory of the process, MB")
     for ax, title in zip(axes, titles):
@@ -396,6 +455,9 @@ def chart(output, path):
         ax.set_xticks(SIZES, [str(d) for d in SIZES])
         ax.grid(True, which="both", alpha=0.3)
     handles, labels = axes[1].get_legend_handles_labels()
+    extra = [(h, lab) for h, lab in zip(*axes[0].get_legend_handles_labels())
+             if lab not in labels]
+    handles, labels = handles + [h for h, _ in extra], labels + [lab for _, lab in extra]
     fig.legend(handles, labels, loc="outside lower center", ncol=3, fontsize=8)
     fig.savefig(path, dpi=110)
     print(f"wrote {path}")
@@ -417,6 +479,10 @@ def main(argv=None):
     parser.add_argument("--quick", action="store_true",
                         help=f"d = {QUICK['sizes']}, seed 0, {QUICK['n_trajectories']} "
                              f"trajectories, in the output's quick folder")
+    parser.add_argument("--sindy-cpu-limit", type=float, default=None, metavar="SECONDS",
+                        help="stop PySINDy after this many CPU seconds and save the time as "
+                             "a lower bound; with it, PySINDy also runs where its library "
+                             "has fewer than two samples per function (for its time only)")
     parser.add_argument("--one", nargs=3, metavar=("D", "SEED", "METHOD"),
                         help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
@@ -429,7 +495,7 @@ def main(argv=None):
     if args.one:
         d, seed, method = int(args.one[0]), int(args.one[1]), args.one[2]
         run_one(args.chain, d, seed, method, args.n_trajectories,
-                row_path(output, args.chain, d, seed, method))
+                row_path(output, args.chain, d, seed, method), args.sindy_cpu_limit)
         return
     if args.chart is not None:
         chart(output, args.chart)
@@ -438,7 +504,8 @@ def main(argv=None):
         for d in args.sizes:
             for seed in args.seeds:
                 for method in args.methods:
-                    compute(args.chain, d, seed, method, args.n_trajectories, output)
+                    compute(args.chain, d, seed, method, args.n_trajectories, output,
+                            args.sindy_cpu_limit)
     report(args.chain, args.sizes, args.seeds, output)
 
 

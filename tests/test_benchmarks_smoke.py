@@ -293,3 +293,26 @@ def test_scale_study_quick_on_the_oscillator_network(tmp_path):
     png = tmp_path / "chart.png"
     assert "wrote" in run("--quick", "--chart", str(png))
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_scale_study_cpu_limit_stops_a_fit_and_lifts_after():
+    """``--sindy-cpu-limit``: a fit past its CPU seconds stops; the limit is gone afterwards."""
+    import resource  # noqa: PLC0415
+    import time  # noqa: PLC0415
+
+    sys.path.insert(0, str(BENCHMARKS))
+    try:
+        import scale_study  # noqa: PLC0415
+    finally:
+        sys.path.remove(str(BENCHMARKS))
+    before = resource.getrlimit(resource.RLIMIT_CPU)
+    start = time.process_time()
+    with pytest.raises(scale_study.CPULimitReached):
+        with scale_study.cpu_limit(1.0):
+            while time.process_time() - start < 30:
+                sum(range(10_000))
+    assert 1.0 <= time.process_time() - start < 10
+    assert resource.getrlimit(resource.RLIMIT_CPU) == before
+    with scale_study.cpu_limit(None):
+        pass
+
