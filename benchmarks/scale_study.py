@@ -375,10 +375,12 @@ def report(chain, sizes, seeds, output):
                       f"{r['cpu_s']:.0f} CPU s, {r['peak_mb']:.0f} MB{bound}")
             if not done:
                 continue
-            # The search's CPU time over PySINDy's, on the same data and folds.
+            # The search's CPU time over PySINDy's, on the same data and folds
+            # (where PySINDy finished; a bound is printed on its own line).
+            finished = {s for (d_, s, m), r in rows.items() if d_ == d and m == "sindy"
+                        and "cpu_s" in r and not r.get("unfinished")}
             ratios = [rows[d, r["seed"], "search"]["cpu_s"] / rows[d, r["seed"], "sindy"]["cpu_s"]
-                      for r in done if method == "search"
-                      and "cpu_s" in rows.get((d, r["seed"], "sindy"), {})]
+                      for r in done if method == "search" and r["seed"] in finished]
             line = dict(d=d, method=method, seeds=len(done),
                         exact=(f"{sum(r['exact'] for r in done)}/{len(done)}"
                                if LAWS[chain] is not None else "-"),
