@@ -1,7 +1,8 @@
 """The default search on data its study scenes did not have: folds, exact data, long records, spikes.
 
 The anharmonic spring ``H = p^2/2 + q^2/2 + q^4/4`` is not among the package's
-datasets; it is built here as a user would.
+datasets; it is built here as a user would, and so are an asymmetric well
+(cubic and quartic terms) and a pendulum whose angle is read modulo one turn.
 """
 
 import warnings
@@ -11,7 +12,12 @@ import pytest
 from sklearn.model_selection import KFold
 
 from sk_hamiltonian import HamiltonianRegressor, DerivativeTransformer
-from sk_hamiltonian.datasets import anharmonic_spring, make_trajectories, single_pendulum
+from sk_hamiltonian.datasets import (
+    HamiltonianSystem,
+    anharmonic_spring,
+    make_trajectories,
+    single_pendulum,
+)
 from sk_hamiltonian.exceptions import OutlierWarning
 from sk_hamiltonian.inspection import hamiltonian_terms
 from sk_hamiltonian.model_selection import HamiltonianSearchCV
@@ -144,3 +150,51 @@ def test_no_space_fits_the_data_says_why():
         small_search(0.01, cv=2, degrees=(30,), fit_on=("derivatives",)).fit(X)
     assert "degree 30 has 495 unknowns" in str(info.value)
     assert "lower degrees (degrees)" in str(info.value)
+
+
+@pytest.mark.slow
+def test_an_angle_read_modulo_one_turn_gives_the_pendulum_law():
+    # Rotating and librating orbits, the angle reported in [-pi, pi) as an
+    # encoder gives it: every rotation jumps by 2 pi between two samples.
+    rng = np.random.default_rng(0)
+    pendulum = single_pendulum()
+    x0 = np.column_stack([rng.uniform(-8, 8, 150), rng.uniform(-np.pi, np.pi, 150)])
+    X = pendulum.solve(x0, 0.02 * np.arange(41), max_step=0.002)
+    X = X + 0.01 * np.sqrt(np.mean(X.reshape(-1, 2) ** 2, axis=0)) * rng.standard_normal(X.shape)
+    wrapped = X.copy()
+    wrapped[..., 1] = (X[..., 1] + np.pi) % (2 * np.pi) - np.pi
+    assert np.abs(np.diff(wrapped[..., 1], axis=1)).max() > np.pi
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        search = small_search(0.02).fit(wrapped)
+    assert terms(search) == ["cos(q)", "p^2"]
+    coef = {t.text: t.coefficient for t in hamiltonian_terms(search.best_estimator_[-1])}
+    np.testing.assert_allclose([coef["p^2"], coef["cos(q)"]], [0.5, -9.8], rtol=0.01)
+
+
+@pytest.mark.slow
+def test_an_asymmetric_anharmonic_well_from_few_long_records():
+    # H = p^2/2 + q^2/2 + 0.3 q^3 + 0.1 q^4, not among the datasets: five
+    # records of 801 samples, cut into segments by the search itself.
+    def hamiltonian(X):
+        p, q = X[..., 0], X[..., 1]
+        return p**2 / 2 + q**2 / 2 + 0.3 * q**3 + 0.1 * q**4
+
+    def gradient(X):
+        p, q = X[..., 0], X[..., 1]
+        return np.stack([p, q + 0.9 * q**2 + 0.4 * q**3], axis=-1)
+
+    well = HamiltonianSystem("asymmetric well", hamiltonian, gradient,
+                             [[-1.2, 1.2], [-1.2, 1.2]], [0.5, 0.5])
+    rng = np.random.default_rng(3)
+    X = well.solve(rng.uniform(-1.2, 1.2, size=(5, 2)), 0.05 * np.arange(801), max_step=0.005)
+    X = X + 0.01 * np.sqrt(np.mean(X.reshape(-1, 2) ** 2, axis=0)) * rng.standard_normal(X.shape)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        search = small_search(0.05).fit(X)
+    assert search.preparation_["segments"]["n_records"] == 5
+    assert terms(search) == ["p^2", "q^2", "q^3", "q^4"]
+    coef = {t.text: t.coefficient for t in hamiltonian_terms(search.best_estimator_[-1])}
+    np.testing.assert_allclose([coef[k] for k in ("p^2", "q^2", "q^3", "q^4")],
+                               [0.5, 0.5, 0.3, 0.1], rtol=0.02)
+

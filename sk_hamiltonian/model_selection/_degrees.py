@@ -9,10 +9,12 @@ the lowest held-out equation error (:func:`~._selection.pick_within`) is the
 pair's *finalist*, scored by rollouts against the held-out observations.
 """
 
+import itertools
 import time
 import warnings
 
 import numpy as np
+from sklearn.utils.parallel import Parallel, delayed
 
 from .._trajectories import unpack_derivatives
 from ._fold_problems import FoldProblems, take
@@ -25,6 +27,56 @@ ROWS_PER_UNKNOWN = 2
 def failure_reason(failures):
     """The first failure's message, as the end of an error message."""
     return f" The first candidate's error: {failures[0]}" if failures else ""
+
+
+def search_finalists(layouts, fit_on, folds, spaces, kept, offset, *, degrees, thresholds,
+                     damping, domain, scorer, error_score, n_jobs):
+    """Stage 2: :func:`search_unit` for every layout and fit target, in parallel.
+
+    Parameters
+    ----------
+    layouts : dict
+        Each searched derivative layout's key to its transformed trajectories.
+    fit_on : list of str
+        The fit targets.
+    folds : list of ndarray of int
+    spaces : list of dict
+        Every screened space; ``kept`` indexes the ones searched.
+    kept : list of int
+    offset : int
+        Records before these (the screen's): finalists' rows count from it.
+    degrees, thresholds, damping, domain, scorer, error_score
+        As :func:`search_unit` takes them.
+    n_jobs : int or None
+        Pairs searched at once (joblib).
+
+    Returns
+    -------
+    records : list of dict
+        Every candidate's record, ``space`` an index into ``spaces`` and
+        ``stage`` ``"search"`` or ``"finalist"``.
+    finalists : list of int
+        The finalists' rows, ``offset`` plus their position in ``records``.
+    failures : list of str
+        The messages of the spaces that could not be set up.
+    """
+    pairs = list(itertools.product(layouts, fit_on))
+    results = Parallel(n_jobs=n_jobs)(
+        delayed(search_unit)(layouts[key], folds, [spaces[k] for k in kept], target, degrees,
+                             thresholds, damping, domain, key, rollout=True, scorer=scorer,
+                             error_score=error_score)
+        for key, target in pairs
+    )
+    records, finalists, failures = [], [], []
+    for unit_records, finalist, unit_failures in results:
+        failures.extend(unit_failures)
+        for record in unit_records:
+            record.update(space=kept[record["space"]], stage="search")
+        if finalist is not None:
+            unit_records[finalist]["stage"] = "finalist"
+            finalists.append(offset + len(records) + finalist)
+        records.extend(unit_records)
+    return records, finalists, failures
 
 
 def search_unit(Xt, folds, spaces, fit_on, degrees, thresholds, damping, domain, denoise,

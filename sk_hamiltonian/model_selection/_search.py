@@ -4,20 +4,18 @@ The estimator runs the stages of its own modules on one set of folds:
 :mod:`._prepare` (the data: spikes, duplicates, long records, the folds),
 :mod:`._screen` (the model spaces), :mod:`._degrees` (degrees and thresholds,
 one finalist per layout and fit target), :mod:`._finalists` (the choice) and
-:mod:`._refine` (the chosen coefficients fitted to the trajectories).
+:mod:`._refine` (the chosen coefficients fitted to the trajectories);
+:mod:`._search_checks` checks its list parameters.
 """
 
-import itertools
 import time
-import warnings
 from numbers import Integral, Real
 
 import numpy as np
 from sklearn.base import BaseEstimator
-from sklearn.metrics import check_scoring, get_scorer_names
+from sklearn.metrics import get_scorer_names
 from sklearn.pipeline import Pipeline
 from sklearn.utils._param_validation import Interval, StrOptions
-from sklearn.utils.parallel import Parallel, delayed
 from sklearn.utils.validation import check_is_fitted
 
 from .._derivatives import DerivativeTransformer
@@ -25,7 +23,7 @@ from .._hamiltonian import HamiltonianRegressor
 from .._inspection.terms import check_state_names
 from .._state_order import ORDER_WORDS, STATE_ORDERS, swap_halves, swap_raw, swap_space
 from .._trajectories import check_trajectories
-from ._degrees import failure_reason, score_fold, search_unit
+from ._degrees import failure_reason, score_fold, search_finalists
 from ._finalists import choose
 from ._prepare import prepare
 from ._refine import refine_chosen
@@ -39,11 +37,17 @@ from ._screen import (
     screen_layout,
     screen_target,
 )
+from ._search_checks import (
+    CLEAN_FIT_TARGETS,
+    FIT_TARGETS,
+    check_denoise,
+    check_fit_on,
+    check_scorer,
+    check_spaces,
+    check_values,
+)
 from ._selection import SELECTIONS
 
-FIT_TARGETS = ("derivatives", "steps", "simpson", "weak")
-# Fit targets kept for exact data: those whose truncation error is O(dt**4).
-CLEAN_FIT_TARGETS = ("simpson", "weak")
 
 
 class HamiltonianSearchCV(BaseEstimator):
@@ -368,11 +372,11 @@ class HamiltonianSearchCV(BaseEstimator):
         n_states = trajectories[0].shape[1] - (1 if self.dt is None else 0)
         check_state_names(self.state_names, n_states,
                           order=f"{ORDER_WORDS[self.state_order]} first")
-        degrees = self._check_values("degrees", self.degrees, integer=True, low=1)
-        thresholds = self._check_values("thresholds", self.thresholds, integer=False, low=0)
-        fit_on = self._check_fit_on()
-        scorer = self._scorer()
-        spaces = None if self.spaces == "auto" else self._check_spaces()
+        degrees = check_values("degrees", self.degrees, integer=True, low=1)
+        thresholds = check_values("thresholds", self.thresholds, integer=False, low=0)
+        fit_on = check_fit_on(self.fit_on)
+        scorer = check_scorer(self.scoring)
+        spaces = None if self.spaces == "auto" else check_spaces(self.spaces)
         # state_order="qp": the search runs on the states exchanged into (p, q)
         # order, with the per-state parameters exchanged alike; what it reports
         # and the chosen model are in the columns' order.
@@ -397,7 +401,7 @@ class HamiltonianSearchCV(BaseEstimator):
             raise ValueError(f"cv must give at least 2 folds; got {len(folds)}.")
         if prepared.report["segments"] is not None:
             self._say(f"segments: {prepared.report['segments']['rule']}")
-        denoise = self._check_denoise(min(T.shape[0] for T in trajectories))
+        denoise = check_denoise(self.denoise_degrees, min(T.shape[0] for T in trajectories))
         clean = prepared.report["clean"]
         if clean:
             # Exact data: de-noising only adds bias, and only the fit targets
@@ -425,22 +429,12 @@ class HamiltonianSearchCV(BaseEstimator):
         if len(searched) < len(denoise):
             self._say(f"biased layouts left out: "
                       f"{[describe_layout(key) for key in denoise if key in misfits]}")
-        pairs = list(itertools.product(searched, fit_on))
-        results = Parallel(n_jobs=self.n_jobs)(
-            delayed(search_unit)(layouts[key], folds, [spaces[k] for k in kept], target_,
-                                 degrees, thresholds, self.damping, domain, key,
-                                 rollout=True, scorer=scorer, error_score=self.error_score)
-            for key, target_ in pairs
-        )
-        finalists = []
-        for (key, target_), (unit_records, finalist, unit_failures) in zip(pairs, results):
-            failures.extend(unit_failures)
-            for record in unit_records:
-                record.update(space=kept[record["space"]], stage="search")
-            if finalist is not None:
-                unit_records[finalist]["stage"] = "finalist"
-                finalists.append(len(records) + finalist)
-            records.extend(unit_records)
+        searched_records, finalists, searched_failures = search_finalists(
+            {key: layouts[key] for key in searched}, fit_on, folds, spaces, kept, len(records),
+            degrees=degrees, thresholds=thresholds, damping=self.damping, domain=domain,
+            scorer=scorer, error_score=self.error_score, n_jobs=self.n_jobs)
+        records.extend(searched_records)
+        failures.extend(searched_failures)
         if not finalists:
             raise ValueError(
                 "No candidate could be fitted and scored in every fold. Give more "
@@ -535,7 +529,7 @@ class HamiltonianSearchCV(BaseEstimator):
             derivative layout, as in the search.
         """
         self._check_refitted("score")
-        scorer = self._scorer()
+        scorer = check_scorer(self.scoring)
         if scorer is None:
             return self.best_estimator_.score(X)
         Xt = self.best_estimator_[0].transform(X)
@@ -588,12 +582,6 @@ class HamiltonianSearchCV(BaseEstimator):
         return tags
 
     # ------------------------------------------------------------ checks
-    def _scorer(self):
-        """``scoring`` as a scorer of a fitted regressor (:func:`score_fold`); None: the rollout score."""
-        if self.scoring is None:
-            return None
-        return check_scoring(HamiltonianRegressor(), scoring=self.scoring)
-
     def _check_refitted(self, method):
         check_is_fitted(self)
         if not self.refit:
@@ -607,66 +595,3 @@ class HamiltonianSearchCV(BaseEstimator):
     def _say(self, message):
         if self.verbose:
             print(f"[HamiltonianSearchCV] {message}", flush=True)
-
-    def _check_denoise(self, shortest):
-        values = list(self.denoise_degrees)
-        if not values:
-            raise ValueError("denoise_degrees must name at least one derivative layout.")
-        out = []
-        for value in values:
-            if isinstance(value, str) and value == "finite_difference":
-                out.append(value)
-            elif isinstance(value, Integral) and not isinstance(value, bool) and value >= 1:
-                out.append(int(value))
-            else:
-                raise ValueError(
-                    f"denoise_degrees entries must be 'finite_difference' or a de-noising "
-                    f"degree Q >= 1; got {value!r}."
-                )
-        usable = [v for v in out if v == "finite_difference" or v <= shortest - 2]
-        if not usable:
-            raise ValueError(
-                f"Every de-noising degree in denoise_degrees={values!r} is too large for the "
-                f"shortest trajectory ({shortest} samples; Q must be at most samples - 2): give "
-                f"lower degrees or 'finite_difference'."
-            )
-        if len(usable) < len(out):
-            warnings.warn(
-                f"HamiltonianSearchCV: de-noising degrees "
-                f"{[v for v in out if v not in usable]} left out: the shortest trajectory has "
-                f"{shortest} samples, and Q must be at most samples - 2.",
-                UserWarning, stacklevel=3,
-            )
-        return list(dict.fromkeys(usable))
-
-    @staticmethod
-    def _check_values(name, values, integer, low):
-        values = list(np.ravel(values))
-        ok = bool(values) and all(
-            not isinstance(v, bool) and isinstance(v, Integral if integer else Real)
-            and np.isfinite(v) and v >= low for v in values
-        )
-        if not ok:
-            kind = "integers" if integer else "finite numbers"
-            raise ValueError(f"{name} must be a non-empty list of {kind} >= {low}; got {values!r}.")
-        cast = int if integer else float
-        return sorted({cast(v) for v in values})
-
-    def _check_fit_on(self):
-        values = list(self.fit_on) if not isinstance(self.fit_on, str) else [self.fit_on]
-        if not values or any(v not in FIT_TARGETS for v in values):
-            raise ValueError(f"fit_on must be a non-empty list of {FIT_TARGETS}; got {self.fit_on!r}.")
-        return list(dict.fromkeys(values))
-
-    def _check_spaces(self):
-        allowed = {"periodic", "mixed", "momentum_degree", "separable", "max_interaction",
-                   "couplings", "solver"}
-        if not self.spaces:
-            raise ValueError("spaces must be 'auto' or a non-empty list of dicts.")
-        for space in self.spaces:
-            if not isinstance(space, dict) or set(space) - allowed:
-                raise ValueError(
-                    f"spaces entries must be dicts of HamiltonianRegressor parameters among "
-                    f"{sorted(allowed)}; got {space!r}."
-                )
-        return [dict(space) for space in self.spaces]
