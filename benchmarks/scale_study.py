@@ -444,7 +444,7 @@ def chart(output, path):
     for chain in CHAINS:
         mine = [r for r in bounds if r.get("chain", "fput") == chain]
         if mine:
-            axes[0].plot([r["d"] for r in mine], [r["cpu_s"] for r in mine], "^", ms=7,
+            axes[0].plot([r["d"] for r in mine], [r["cpu_s"] for r in mine], "^", ms=11, zorder=5,
                          color=colors[chain], mfc="none",
                          label=f"{names[chain]}, PySINDy CV stopped unfinished (at least)")
     titles = ("CPU seconds of the fit (median)", "error at T = 20 (geometric mean)",
