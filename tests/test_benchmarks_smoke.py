@@ -311,7 +311,10 @@ def test_scale_study_cpu_limit_stops_a_fit_and_lifts_after():
         with scale_study.cpu_limit(1.0):
             while time.process_time() - start < 30:
                 sum(range(10_000))
-    assert 1.0 <= time.process_time() - start < 10
+    # The kernel counts CPU time by its clock ticks and the limit is whole
+    # seconds from the start's: it may fire a tick before process_time
+    # reads the second full (measured: 0.998 s), never much earlier.
+    assert 0.9 <= time.process_time() - start < 10
     assert resource.getrlimit(resource.RLIMIT_CPU) == before
     with scale_study.cpu_limit(None):
         pass
