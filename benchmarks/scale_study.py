@@ -274,9 +274,10 @@ def run_sindy(chain, system, X, cv, seed, x0, truth, cpu_limit_s=None):
     n_samples = X.shape[0] * X.shape[1] * (FOLDS - 1) // FOLDS
     # The search's own rule (two equations per unknown in every fold); each
     # of PySINDy's regressions has one equation per sample.
+    beyond_rule = 2 * n_features > n_samples
     too_few = (f"the library has {n_features} functions, the training folds {n_samples} "
                f"samples: fewer than two per function")
-    if 2 * n_features > n_samples and cpu_limit_s is None:
+    if beyond_rule and cpu_limit_s is None:
         return dict(skipped=too_few)
     try:
         from sindy_anchor import fit_sindy_cv
@@ -290,7 +291,7 @@ def run_sindy(chain, system, X, cv, seed, x0, truth, cpu_limit_s=None):
     except CPULimitReached:
         # Its time is known to exceed the limit: a lower bound, no model.
         row = dict(unfinished=True, cpu_s=time.process_time() - start)
-        if 2 * n_features > n_samples:
+        if beyond_rule:
             row["note"] = too_few + " (run for its time only)"
         return row
     seconds = time.process_time() - start
@@ -377,10 +378,10 @@ def report(chain, sizes, seeds, output):
                 continue
             # The search's CPU time over PySINDy's, on the same data and folds
             # (where PySINDy finished; a bound is printed on its own line).
-            finished = {s for (d_, s, m), r in rows.items() if d_ == d and m == "sindy"
-                        and "cpu_s" in r and not r.get("unfinished")}
             ratios = [rows[d, r["seed"], "search"]["cpu_s"] / rows[d, r["seed"], "sindy"]["cpu_s"]
-                      for r in done if method == "search" and r["seed"] in finished]
+                      for r in done if method == "search"
+                      and "cpu_s" in rows.get((d, r["seed"], "sindy"), {})
+                      and not rows[d, r["seed"], "sindy"].get("unfinished")]
             line = dict(d=d, method=method, seeds=len(done),
                         exact=(f"{sum(r['exact'] for r in done)}/{len(done)}"
                                if LAWS[chain] is not None else "-"),

@@ -318,4 +318,3 @@ def test_scale_study_cpu_limit_stops_a_fit_and_lifts_after():
     assert resource.getrlimit(resource.RLIMIT_CPU) == before
     with scale_study.cpu_limit(None):
         pass
-

@@ -197,4 +197,3 @@ def test_an_asymmetric_anharmonic_well_from_few_long_records():
     coef = {t.text: t.coefficient for t in hamiltonian_terms(search.best_estimator_[-1])}
     np.testing.assert_allclose([coef[k] for k in ("p^2", "q^2", "q^3", "q^4")],
                                [0.5, 0.5, 0.3, 0.1], rtol=0.02)
-

@@ -3,9 +3,10 @@
 ``solve(keep, basis=None) -> (u, cond, rank)`` is the least-squares solution
 over the columns of the boolean mask ``keep``, or over the coefficients
 ``basis @ u`` of those columns (``cond`` may come deferred, as a callable:
-:class:`~.support.Solution` computes it when it is read); with the normal equations a new support is a
-smaller solve on the same Gram matrix, not a new assembly. The support rules
-of :mod:`.support` call it once per support they try.
+:class:`~.support.Solution` computes it when it is read); with the normal
+equations a new support is a smaller solve on the same Gram matrix, not a
+new assembly. The support rules of :mod:`.support` call it once per support
+they try.
 """
 
 import functools

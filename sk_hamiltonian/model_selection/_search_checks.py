@@ -1,4 +1,4 @@
-"""The checks of :class:`~._search.HamiltonianSearchCV`'s list parameters, with the fix in each message.
+"""Checks of :class:`~._search.HamiltonianSearchCV`'s list parameters, the fix in each message.
 
 ``_parameter_constraints`` checks each parameter's type; these check what a
 type cannot say: the entries of the lists, and a de-noising degree against
@@ -94,7 +94,10 @@ def check_spaces(spaces):
 
 
 def check_scorer(scoring):
-    """``scoring`` as a scorer of a fitted regressor (:func:`~._degrees.score_fold`); None: the rollout score."""
+    """``scoring`` as a scorer of a fitted regressor (:func:`~._degrees.score_fold`).
+
+    None stays None: the search then scores by rollouts.
+    """
     if scoring is None:
         return None
     return check_scoring(HamiltonianRegressor(), scoring=scoring)
