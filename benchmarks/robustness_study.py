@@ -112,10 +112,10 @@ METHODS = ("search", "sindy", "sindy-weak")
 TABLES = {
     # table: (scenes, shapes, noises, seeds, methods)
     "noise": (["pendulum", "spring"], ["many"], NOISES, range(5), METHODS),
-    "shapes": (list(SCENES), list(SHAPES), ["add2"], range(3), METHODS),
+    "shapes": (list(SCENES), list(SHAPES), ["add2"], range(5), METHODS),
     "coupled": (["coupled_pendula"], ["many"], ["add2", "mult2"], range(5), METHODS),
     # The project issue's long-record case: Henon-Heiles as three records of 2 001.
-    "long": (["henon_heiles"], ["three"], ["add2"], range(3), METHODS),
+    "long": (["henon_heiles"], ["three"], ["add2"], range(5), METHODS),
 }
 FOLD_CASES = [("spring", "0"), ("spring", "add1"), ("spring", "add3"), ("pendulum", "add8"),
               ("henon_heiles", "add2")]

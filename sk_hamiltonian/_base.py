@@ -508,7 +508,11 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
 
     def _default_step(self, method):
         """The step ``simulate`` takes when ``max_step`` is None."""
-        return simulation.default_step(method, fit_on=self._fit_target, dt=self.dt_,
+        # Coefficients fitted to the trajectories describe the flow, not the
+        # map at the data step that a fit on steps learned.
+        refined = getattr(self, "trajectory_fit_status_", None) == "refined"
+        return simulation.default_step(method, fit_on="trajectories" if refined else
+                                       self._fit_target, dt=self.dt_,
                                        time_scale=self.time_scale_)
 
     def simulate(self, x0, t, *, method=None, max_step=None, on_failure="raise"):
@@ -533,7 +537,9 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
             Largest integration step; each interval of ``t`` is split into the
             fewest equal steps no longer than this. None chooses it from the
             fitted model: the training step ``dt_`` for the AVF method of a
-            model fitted on steps, else a fraction of the learned system's
+            model fitted on steps (the map it learned; once its coefficients
+            are fitted to the trajectories, ``trajectory_fit_status_`` is
+            ``"refined"``, they describe the flow instead), else a fraction of the learned system's
             time scale ``time_scale_`` (0.1 for the fourth-order methods, 0.02
             for the second-order ones), which keeps the integration error far
             below the model's error. ``numpy.inf`` steps from one output time

@@ -1277,3 +1277,10 @@ def test_no_resample_reports_the_searchs_refinement_not_a_refit_against_itself(
     # Noisy data: the trajectory fit moves the least-squares coefficients
     # measurably (0.12 % here); a self-comparison gives round-off.
     assert change > 1e-3, out
+    # The held-out check's gain is printed with its standard error, and the
+    # verdict in words follows from the two.
+    gain = number(r"a gain of ([-+0-9.e]+) ± ", out)
+    spread = number(r"a gain of [-+0-9.e]+ ± ([-+0-9.e]+);", out)
+    assert spread > 0
+    told = "the held-out data tell the two apart" in out
+    assert told == (abs(gain) > 2 * spread), out

@@ -15,10 +15,10 @@ DT = 0.01
 PENDULUM = {"p^2": 0.5, "cos(q)": -9.8}
 
 
-def least_squares(X, method="finite_difference", **params):
+def least_squares(X, method="finite_difference", dt=DT, **params):
     params = {**dict(degree=4, threshold=0.01, momentum_degree=2, periodic=[False, True],
                      fit_on="derivatives"), **params}
-    Xt = DerivativeTransformer(dt=DT, method=method).fit_transform(X)
+    Xt = DerivativeTransformer(dt=dt, method=method).fit_transform(X)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         return HamiltonianRegressor(**params).fit(Xt)
@@ -244,3 +244,25 @@ def test_initial_states_alone_are_fitted_with_the_coefficients_fixed(exact):
     n_obs = exact.shape[1] * exact.shape[2]
     assert 0.5 < np.median(right) / n_obs < 1.5
     assert np.median(wrong) > 10 * np.median(right)
+
+
+def test_a_refined_fit_on_steps_is_simulated_as_the_flow_it_now_describes():
+    # A fit on steps learns the AVF map at the data step, and is simulated
+    # at that step; refined on the trajectories, its coefficients describe
+    # the flow, and the map's step would add the method's own error.
+    dt = 0.05
+    system = single_pendulum()
+    X = make_trajectories(system, 30, 40, dt=dt, random_state=0)
+    model = least_squares(X, fit_on="steps", dt=dt)
+    assert model._default_step("avf") == model.dt_
+    x0 = X[:3, 0]
+    t = np.linspace(0.0, 10.0, 11)
+    truth = system.solve(x0, t, max_step=1e-3)
+
+    def error(**options):
+        return np.abs(model.simulate(x0, t, **options) - truth).max()
+
+    info = refine_on_trajectories(model, list(X), dt)
+    assert info["status"] == "refined"
+    assert model._default_step("avf") < model.dt_
+    assert error() < error(max_step=model.dt_) / 10

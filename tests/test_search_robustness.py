@@ -121,6 +121,8 @@ def test_a_refinement_that_explains_held_out_data_worse_is_rejected_with_its_rea
         "kept: the trajectory fit explains held-out trajectories worse")
     least, refined = info["check"]["misfit"]
     assert refined > 2 * least
+    # ... by far more than the spread of the held-out trajectories' misfits.
+    assert info["check"]["gain"] < -2 * info["check"]["gain_se"]
     np.testing.assert_array_equal(model.coef_, start)
 
 

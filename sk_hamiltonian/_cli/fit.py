@@ -179,6 +179,12 @@ def _refine_chosen(result, model, refitted, names):
         least, refined = check["misfit"]
         checked = (f"; on held-out trajectories its misfit is {refined:.4g} against "
                    f"{least:.4g} for least squares")
+        spread = check.get("gain_se")
+        if spread is not None and np.isfinite(spread):
+            gain = check["gain"]
+            checked += (f" (a gain of {gain:.3g} ± {spread:.2g}"
+                        + ("; the held-out data tell the two apart)" if abs(gain) > 2 * spread
+                           else "; within what the held-out data can tell)"))
     print(
         f"refined: the {counted(info['n_terms'], 'kept coefficient')}"
         + (" and the friction" if model.damping else "")

@@ -103,7 +103,10 @@ def refine(regressor, trajectories, dt, *, least_squares=None, held_out=None):
         ``status``: ``"refined"``, or ``"kept: "`` and why the least-squares
         coefficients were kept. ``check``, when checked: ``misfit``, the
         held-out misfits (least squares, trajectory fit) summed over the
-        held-out trajectories, and ``n_trajectories``. When refined:
+        held-out trajectories, ``n_trajectories``, ``gain`` (the first
+        misfit less the second) and ``gain_se`` (its standard error from the
+        spread of that difference over the held-out trajectories; NaN with
+        one). When refined:
         ``n_terms``; ``n_iter`` (Levenberg-Marquardt iterations);
         ``converged``; ``noise`` (the variance model ``(a_i, b_i)`` of each
         variable, ``a_i + b_i x_i^2``) and ``noise_source`` (``"residuals"``:
@@ -228,5 +231,8 @@ def _held_out_check(least_squares, held_out, times, states, bound):
         verdict = (f"the trajectory fit explains held-out trajectories worse than the "
                    f"least-squares fit (weighted misfit {totals[1]:.4g} against "
                    f"{totals[0]:.4g})")
+    gain = misfit[:, 0] - misfit[:, 1]
+    with np.errstate(invalid="ignore"):
+        gain_se = float(np.sqrt(len(gain)) * np.std(gain, ddof=1)) if len(gain) > 1 else np.nan
     return dict(verdict=verdict, misfit=tuple(float(v) for v in totals),
-                n_trajectories=len(misfit))
+                n_trajectories=len(misfit), gain=float(gain.sum()), gain_se=gain_se)
