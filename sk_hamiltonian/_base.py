@@ -539,11 +539,14 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
             fitted model: the training step ``dt_`` for the AVF method of a
             model fitted on steps (the map it learned; once its coefficients
             are fitted to the trajectories, ``trajectory_fit_status_`` is
-            ``"refined"``, they describe the flow instead), else a fraction of the learned system's
-            time scale ``time_scale_`` (0.1 for the fourth-order methods, 0.02
-            for the second-order ones), which keeps the integration error far
-            below the model's error. ``numpy.inf`` steps from one output time
-            to the next.
+            ``"refined"``, they describe the flow instead), else a fraction
+            of the learned system's time scale ``time_scale_`` (0.1 for the
+            fourth-order methods, 0.02 for the second-order ones), which keeps
+            the integration error far below the error of a model learned from
+            noisy data; a model learned from exact data can be closer to its
+            law than that step resolves (the pendulum's RK4 default is about
+            1e-5 relative after twenty time units), so pass a smaller step
+            there. ``numpy.inf`` steps from one output time to the next.
         on_failure : {"raise", "nan"}, default="raise"
             What happens when a trajectory becomes non-finite or an implicit
             step does not converge: ``"raise"`` a :class:`SimulationError`;
