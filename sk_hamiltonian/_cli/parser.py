@@ -42,7 +42,7 @@ them (the default score), and keeps, among the finalists the data cannot
 tell apart, the fewest terms, the smoothest de-noising and the least biased
 fit target; the chosen model's coefficients are then fitted to the raw
 trajectories themselves (output error, weighted by a noise model estimated
-from the residuals; docs/search.rst). With --paper-grid, the paper's
+from the residuals; docs/default_search.rst). With --paper-grid, the paper's
 polynomial space only: a GridSearchCV over (Q, n), refit = the best mean
 score, no refinement. With
 fewer trajectories than folds (e.g. one long record), the trajectories are
