@@ -295,6 +295,22 @@ def test_scale_study_quick_on_the_oscillator_network(tmp_path):
     assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
 
+@pytest.mark.slow
+def test_robustness_study_quick_reports_its_tables_and_the_check_rules():
+    proc = subprocess.run([sys.executable, str(BENCHMARKS / "robustness_study.py"), "--quick"],
+                          capture_output=True, text=True, env=dict(os.environ, MPLBACKEND="Agg"),
+                          timeout=600)
+    assert proc.returncode == 0, (proc.stdout + proc.stderr)[-3000:]
+    out = proc.stdout
+    assert "* - spring, many, add2" in out and "* - spring, add1" in out
+    rules = out.split("The held-out check's rule:")[1].split("Losses:")[0]
+    # One case under six rules; never accepting the refinement is refine=None
+    # itself, so it is never worse than refine=None.
+    assert rules.count(" of 1\n") == 12
+    never = rules.split("never accept (refine=None)")[1]
+    assert never.split("\n")[1].strip() == "- 0 of 1"
+
+
 def test_scale_study_cpu_limit_stops_a_fit_and_lifts_after():
     """``--sindy-cpu-limit``: a fit past its CPU seconds stops; the limit is gone afterwards."""
     import resource  # noqa: PLC0415
