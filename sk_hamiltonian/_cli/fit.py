@@ -179,6 +179,8 @@ def _refine_chosen(result, model, refitted, names):
         least, refined = check["misfit"]
         checked = (f"; on held-out trajectories its misfit is {refined:.4g} against "
                    f"{least:.4g} for least squares")
+        # The gain with its standard error; beyond two of them either way
+        # (about 5 % by chance) the held-out data tell the two fits apart.
         spread = check.get("gain_se")
         if spread is not None and np.isfinite(spread):
             gain = check["gain"]

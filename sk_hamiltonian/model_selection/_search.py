@@ -253,7 +253,8 @@ class HamiltonianSearchCV(BaseEstimator):
         Stage 4's outcome: ``status`` (``"refined"``, ``"not asked"``, or
         ``"kept: "`` and why the least-squares coefficients were kept);
         ``check``, the held-out check's misfits (least squares, trajectory
-        fit); and when refined ``n_terms``, ``n_iter`` (Levenberg-Marquardt
+        fit), their difference ``gain`` and its standard error ``gain_se``;
+        and when refined ``n_terms``, ``n_iter`` (Levenberg-Marquardt
         iterations), ``converged``, ``noise`` (the variance model's ``(a_i,
         b_i)`` per variable) and ``noise_source`` (``"residuals"``, or
         ``"data"`` where the residuals' own could not be trusted), ``rms``
