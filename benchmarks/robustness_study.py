@@ -329,12 +329,6 @@ def _load(output, key):
     return pickle.loads(path.read_bytes()) if path.exists() else None
 
 
-def _terms_of(formula):
-    """The terms of a printed formula, as a sorted tuple of their names."""
-    body = formula.replace("H~ = ", "").split(" + const")[0].split(" + ...")[0]
-    return tuple(sorted(part.strip().split(" ", 1)[1] for part in re.split(r" [+-] ", body)))
-
-
 def _coefficients_of(formula):
     """The signed coefficients of a printed formula's terms, by term name."""
     body = formula.replace("H~ = ", "").split(" + const")[0].split(" + ...")[0]
@@ -347,18 +341,23 @@ def _coefficients_of(formula):
     return found
 
 
+def _terms_of(formula):
+    """The terms of a printed formula, as a sorted tuple of their names."""
+    return tuple(sorted(_coefficients_of(formula)))
+
+
 def _lean_table(output):
     """The noise table's mean signed relative error of each true coefficient, over the seeds.
 
     Beside the largest absolute error: a lean of the same sign on most seeds
     is a bias, which more data do not remove.
     """
-    scenes, shapes, noises, seeds, _ = TABLES["noise"]
+    scenes, (shape,), noises, seeds, _ = TABLES["noise"]
     rows = []
     for name in scenes:
         truth = SCENES[name]["truth"]
         for noise in noises:
-            search = [r for r in _rows(output, (name, "many", noise), seeds, "search")
+            search = [r for r in _rows(output, (name, shape, noise), seeds, "search")
                       if r["exact_support"]]
             if len(search) < 2:
                 continue
