@@ -1,45 +1,38 @@
 """What the two regressors share: parameters, input validation, the public methods, the tags.
 
-Each job behind the public methods has a home of its own: the four steps of
-a fit (:mod:`._fit_steps`, each callable without ``fit``), the model space
-(:mod:`._space.builder`), the least-squares problem and its support
-(:mod:`._least_squares`), simulation (:mod:`._integrate.simulation`),
-scoring (:mod:`._scoring`), ``partial_fit`` (:mod:`._streaming`) and the
-dask fit (:mod:`._distributed`).
+Each job behind the public methods has a home of its own: the checks of
+parameters and inputs, with the warnings about states outside the domain
+(:mod:`._validation`), the four steps of a fit (:mod:`._fit_steps`, each
+callable without ``fit``), the model space (:mod:`._space.builder`), the
+least-squares problem and its support (:mod:`._least_squares`), simulation
+(:mod:`._simulate`), scoring (:mod:`._scoring`), ``partial_fit``
+(:mod:`._streaming`) and the dask fit (:mod:`._distributed`).
 """
 
-import warnings
 from numbers import Integral, Real
 
 import numpy as np
 from sklearn.base import BaseEstimator, RegressorMixin, _fit_context
-from sklearn.utils import check_array
-from sklearn.utils._param_validation import Interval, InvalidParameterError, StrOptions
-from sklearn.utils.validation import check_is_fitted, validate_data
+from sklearn.utils._param_validation import Interval, StrOptions
+from sklearn.utils.validation import check_is_fitted
 
 from . import _fit_steps as steps
+from . import _simulate
+from . import _validation as validation
 from ._distributed import fit_distributed, is_dask
-from ._integrate import make_integrator, simulation
 from ._least_squares import solve
-from ._outliers import listed, warn_residual_outliers
+from ._outliers import warn_residual_outliers
 from ._resampling import RESAMPLE_KINDS, check_resampling, fit_resamples
 from ._scoring import rollout_score
 from ._space import ModelSpace
 from ._space.builder import space_size
-from ._space.space import all_finite, count_outside
 from ._state_order import swap_couplings, swap_halves, swap_layout
 from ._streaming import available_with_domain, partial_fit_chunk
 from ._threads import gram_flops, limit_blas
-from ._training_data import training_data
 from ._trajectories import is_trajectory_container, unpack_derivatives
-from ._warnings import warn
-from .exceptions import DomainWarning
 
 # Rows of evaluations done at once, to bound memory (entries of float64).
 BLOCK_ENTRIES = 10_000_000
-# Relative slack for "outside the domain", so that training points on the
-# bounding box do not warn after round-off.
-DOMAIN_SLACK = 1e-9
 
 
 class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
@@ -186,8 +179,8 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
         if self.fit_on == "trajectories":
             self._check_trajectory_input(X, y, sample_weight)
         if is_dask(X) or is_dask(y):
-            self._check_no_resampling("a fit on dask arrays")
-            self._check_no_swap("a fit on dask arrays")
+            validation.check_no_resampling(self, "a fit on dask arrays")
+            validation.check_no_swap(self, "a fit on dask arrays")
             return fit_distributed(self, X, y, sample_weight)
         self._partial = None
         data = self._training_data(X, y, sample_weight)
@@ -216,15 +209,6 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
             self._fit_trajectories(X)
         return self
 
-    def _check_no_swap(self, what):
-        """Refuse ``state_order="qp"`` where the columns cannot be exchanged on the way in."""
-        if self._swapped():
-            raise ValueError(
-                f"{type(self).__name__}: state_order='qp' is not supported for {what}. "
-                f"Exchange the columns into (p_1..p_d, q_1..q_d) order yourself (e.g. "
-                f"np.roll(X, d, axis=-1) for d degrees of freedom) and use state_order='pq'."
-            )
-
     def _check_trajectory_input(self, X, y, sample_weight):
         """Refuse what a fit on trajectories cannot take, before anything is fitted."""
         raise ValueError(
@@ -240,16 +224,6 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
         for name in ("trajectory_fit_status_", "noise_", "trajectory_misfit_",
                      "coef_covariance_"):
             self.__dict__.pop(name, None)
-
-    def _check_no_resampling(self, what):
-        """Refuse ``n_resamples > 0`` where the trajectories are not at hand."""
-        if isinstance(self.n_resamples, Integral) and self.n_resamples > 0:
-            raise ValueError(
-                f"{type(self).__name__}: n_resamples={self.n_resamples} refits on resamples "
-                f"of the training trajectories, which {what} does not keep. Fit on "
-                f"trajectories in memory (fit with the derivative layout), or set "
-                f"n_resamples=0."
-            )
 
     def _clear_resampled(self):
         """Drop the resampling of an earlier fit (a refit with ``n_resamples=0`` has none)."""
@@ -290,7 +264,7 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
             of the chunks' median steps, and the energy-trend attributes from
             the last chunk.
         """
-        self._check_no_resampling("partial_fit")
+        validation.check_no_resampling(self, "partial_fit")
         self._clear_resampled()
         return partial_fit_chunk(self, X, y, sample_weight)
 
@@ -339,109 +313,27 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
 
     # ----------------------------------------------------------- validation
     def _check_integer_params(self):
-        # scikit-learn's Interval(Integral) lets booleans through; True is no degree.
-        for name in ("degree", "momentum_degree", "max_interaction", "n_resamples"):
-            value = getattr(self, name)
-            if isinstance(value, (bool, np.bool_)):
-                raise InvalidParameterError(
-                    f"The {name!r} parameter of {type(self).__name__} must be an int, not "
-                    f"a boolean; got {value!r}."
-                )
+        validation.check_integer_params(self)
 
     def _training_data(self, X, y, sample_weight, reset=True):
-        """Validate the input and gather what the fit needs (a :class:`~sk_hamiltonian._training_data.TrainingData`).
-
-        The states and derivatives come out in the model's ``(p, q)`` order:
-        a layout is exchanged before its validation, 2-D states after theirs,
-        so that ``feature_names_in_`` keeps the user's column order.
-        """
-        if not self._swapped():
-            return training_data(self, X, y, sample_weight, reset)
-        if is_trajectory_container(X):
-            return training_data(self, swap_layout(X), y, sample_weight, reset)
-        data = training_data(self, X, y, sample_weight, reset)
-        data.states, data.derivatives = swap_halves(data.states), swap_halves(data.derivatives)
-        return data
-
-    def _warn_outside(self, X, space=None, what="X", stacklevel=3):
-        """A :class:`DomainWarning` for the rows of ``X`` outside ``space``'s box (default: the fitted one)."""
-        domain, periodic = (self.domain_, self.periodic_) if space is None else (
-            space.domain, space.periodic)
-        n_outside = count_outside(X, domain, periodic, slack=DOMAIN_SLACK)
-        self._warn_n_outside(n_outside, X.shape[0], domain, what, stacklevel + 1)
-
-    def _warn_n_outside(self, n_outside, n_samples, domain=None, what="X", stacklevel=3):
-        """The ``DomainWarning`` for ``n_outside`` of ``n_samples`` states (none for none)."""
-        if n_outside:
-            domain = self.domain_ if domain is None else domain
-            warnings.warn(
-                f"{n_outside / n_samples:.1%} of {what} lie outside the domain "
-                f"{domain.tolist()}, where the model is not trusted.",
-                DomainWarning,
-                stacklevel=stacklevel,
-            )
-
-    def _warn_non_finite(self, values, X, method):
-        """A :class:`DomainWarning` when ``method`` returns NaN or inf for some rows of ``X``.
-
-        ``values`` has one row (or one value) per row of ``X`` (both in any
-        state order). Finite states can still overflow the learned field
-        (a degree-n polynomial at ``|x| = 1e300``); the result then holds NaN
-        or inf, which must not leave a public method unannounced.
-        """
-        bad = ~np.isfinite(values.reshape(values.shape[0], -1)).all(axis=1)
-        if not bad.any():
-            return
-        warn(
-            DomainWarning(
-                f"{method} returned NaN or inf for {bad.sum()} of {bad.size} states of X "
-                f"(rows {listed(np.flatnonzero(bad))}): the learned "
-                f"{'H~' if method == 'hamiltonian' else 'field'} overflows float64 there "
-                f"(largest |X| there {np.max(np.abs(X[bad])):.3g}; the fitted domain is "
-                f"{self.domain_.tolist()}). Pass states within the domain, or drop those "
-                f"rows of the result (np.isfinite)."
-            ),
-            DomainWarning,
-        )
-
-    def _check_states(self, X):
-        """Validate states of shape (..., n_states); return them 2-D and the lead shape."""
-        if hasattr(X, "columns") or np.ndim(X) == 2:
-            X = self._validate_states(X)
-            return X, X.shape[:-1]
-        X = np.asarray(X)
-        if X.ndim < 2 or X.shape[-1] != self.n_features_in_:
-            raise ValueError(
-                f"X must have shape (..., {self.n_features_in_}): states on the last axis, "
-                f"as in fit; got shape {X.shape}. For a single state x, pass x[None]."
-            )
-        flat = check_array(X.reshape(-1, X.shape[-1]), ensure_min_samples=1)
-        return flat, X.shape[:-1]
-
-    def _validate_states(self, X):
-        """``validate_data(self, X, reset=False)``, short-cut for a plain finite float64 array.
-
-        For such an array (no feature names at fit) the validation returns
-        it unchanged; its generic path costs about ten times the prediction
-        of one state.
-        """
-        if (
-            type(X) is np.ndarray and X.dtype == np.float64 and X.ndim == 2
-            and X.shape[0] > 0 and X.shape[1] == self.n_features_in_
-            and not hasattr(self, "feature_names_in_") and all_finite(X)
-        ):
-            return X
-        return validate_data(self, X, reset=False)
+        return validation.training_data(self, X, y, sample_weight, reset)
 
     def _check_fitted(self):
-        """``check_is_fitted(self)``, short-cut for a model that has ``coef_``.
+        validation.check_fitted(self)
 
-        ``check_is_fitted`` reads the tags and every attribute's name (about
-        15 us, as long as the compiled prediction of one state); a model with
-        ``coef_`` is fitted, and any other goes the full way to its error.
-        """
-        if "coef_" not in self.__dict__:
-            check_is_fitted(self)
+    def _check_states(self, X):
+        return validation.check_states(self, X)
+
+    def _validate_states(self, X):
+        return validation.validate_states(self, X)
+
+    def _warn_non_finite(self, values, X, method):
+        validation.warn_non_finite(self, values, X, method)
+
+    # Bound, not wrapped: the stacklevels their callers pass count the frames
+    # of these two, and a wrapper would add one.
+    _warn_outside = validation.warn_outside
+    _warn_n_outside = validation.warn_n_outside
 
     # ----------------------------------------------------------- evaluation
     def _in_blocks(self, X, fun, width):
@@ -500,20 +392,14 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
 
     # ------------------------------------------------------------ simulation
     def _integrator(self, method=None):
-        return make_integrator(self._default_method() if method is None else method,
-                               self._dynamics())
+        return _simulate.integrator(self, method)
 
     def _default_method(self):
-        return simulation.default_method(self._fit_target)
+        return _simulate.default_method(self)
 
     def _default_step(self, method):
-        """The step ``simulate`` takes when ``max_step`` is None."""
-        # Coefficients fitted to the trajectories describe the flow, not the
-        # map at the data step that a fit on steps learned.
-        refined = getattr(self, "trajectory_fit_status_", None) == "refined"
-        return simulation.default_step(method, fit_on="trajectories" if refined else
-                                       self._fit_target, dt=self.dt_,
-                                       time_scale=self.time_scale_)
+        """The step ``simulate`` takes with ``method`` when ``max_step`` is None."""
+        return _simulate.default_step(self, method)
 
     def simulate(self, x0, t, *, method=None, max_step=None, on_failure="raise"):
         """Integrate the learned system from one or several initial states.
@@ -580,25 +466,7 @@ class BaseTrajectoryRegressor(RegressorMixin, BaseEstimator):
             times an RK4 step, and ``pip install "sk_hamiltonian[fast]"``
             removes that cost.
         """
-        check_is_fitted(self)
-        x0, single = simulation.check_initial_states(x0, self.n_features_in_)
-        x0 = self._to_model(x0)
-        t = simulation.check_time(t)
-        simulation.check_max_step(max_step)
-        simulation.check_outputs(t.shape[0], x0.shape[0], self.n_features_in_)
-        integrator = self._integrator(method)
-        default = None
-        if max_step is None:
-            max_step = self._default_step(integrator.name)
-            default = "the default step for this model"
-        simulation.check_steps(t, max_step, default)
-        simulation.check_on_failure(on_failure)
-        simulation.warn_slow_avf(integrator.name, t, max_step)
-        Y, reached = simulation.run(integrator, x0, t, max_step, on_failure,
-                                    what=f"the learned system ({type(self).__name__})")
-        self._warn_outside(Y[reached], what="the simulated states", stacklevel=3)
-        Y = self._to_model(Y)  # back to the user's column order
-        return Y[0] if single else Y
+        return _simulate.simulate(self, x0, t, method, max_step, on_failure)
 
     # --------------------------------------------------------------- scoring
     def score(self, X, y=None, sample_weight=None):

@@ -1,25 +1,24 @@
 """Structure-preserving regression: learn the Hamiltonian, not the vector field."""
 
 import numpy as np
-
 from sklearn.utils._param_validation import StrOptions
 
 from . import _fit_trajectories
-from ._base import DOMAIN_SLACK, BaseTrajectoryRegressor
-from ._config import use_numba
-from ._conservation import conservation_message, decorrelated, energy_trend, trend_verdict
-from ._design import quadrature_nodes
-from ._integrate import Dynamics
-from ._integrate.compiled import KernelModel
-from ._kernels import LANE_ROWS
+from . import _hamiltonian_dynamics as dynamics
+from ._base import BaseTrajectoryRegressor
+from ._conservation import (
+    conservation_message,
+    decorrelated,
+    energy_trend,
+    trend_verdict,
+)
+from ._inspection.terms import check_state_names
 from ._least_squares import HamiltonianDesign
-from ._space import ModelSpace, compiled
 from ._state_order import ORDER_WORDS, STATE_ORDERS, warn_if_order_looks_swapped
-from ._structure import apply_structure
 from ._trajectories import check_n_states
+from ._validation import check_equation_count
 from ._warnings import warn
 from .exceptions import ConservationWarning
-from ._inspection.terms import check_state_names
 from .inspection import format_hamiltonian
 
 # A fitted damping is "not backed" by the data when H~ does not fall along
@@ -388,25 +387,7 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
         return super()._n_terms(n_states) + (n_states // 2 if self.damping else 0)
 
     def _check_size(self, data):
-        n_states = data.states.shape[1]
-        if data.derivatives.shape != data.states.shape:
-            raise ValueError(
-                f"y must hold the time derivative of every state variable, with the "
-                f"same shape as X {data.states.shape}; got shape {data.derivatives.shape}."
-            )
-        n_rows = data.n_rows(self._fit_target) * n_states
-        n_unknowns = self._n_terms(n_states)
-        if n_rows < n_unknowns:
-            what = {"steps": "observed steps", "simpson": "pairs of steps",
-                    "weak": "weak-form windows"}.get(
-                self._fit_target, "samples")
-            raise ValueError(
-                f"The data give {data.n_rows(self._fit_target)} {what}, that is {n_rows} "
-                f"equations for {n_unknowns} unknowns at degree={self.degree}: the "
-                f"least-squares problem is underdetermined. Provide more samples (more "
-                f"or longer trajectories), lower `degree`, or restrict the space "
-                f"(momentum_degree, separable, max_interaction, couplings)."
-            )
+        check_equation_count(self, data)
 
     def _design(self, space):
         return HamiltonianDesign(space, self._fit_target, self.damping)
@@ -423,54 +404,11 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
             self.resampled_damping_ = coef[:, n_terms:]
 
     def _resampled_field(self, coef=None, damping=None):
-        """``field(Y, models)``: the vector fields of the refits ``models`` at the rows of ``Y``.
-
-        The refits are ``resampled_coef_`` (and ``resampled_damping_``), or
-        the rows of ``coef`` (and ``damping``) when given.
-        """
-        if coef is None:
-            coef, damping = self.resampled_coef_, getattr(self, "resampled_damping_", None)
-        rows = np.any(coef != 0, axis=0)
-        space = ModelSpace(self.domain_, self.powers_[rows], self.periodic_, self._mixed())
-        coef = coef[:, rows]
-
-        def field(Y, models):
-            gradient = np.einsum("sij,sj->si", space.gradients(Y), coef[models])
-            return apply_structure(gradient, None if damping is None else damping[models])
-
-        return field
+        return dynamics.resampled_field(self, coef, damping)
 
     def _rebuild_fitted(self):
         super()._rebuild_fitted()
-        # A fit in a general space whose kept terms each hold momenta only or
-        # positions only (p^2/2 - 9.8 cos q) is separable too: the explicit
-        # symplectic methods can integrate it.
-        self._split = (self._separable_parts()
-                       if self.separable or self._support_is_separable() else None)
-
-    def _kept_terms_on(self):
-        """For each kept term, whether it holds a momentum, and whether it holds a position."""
-        d = self.n_features_in_ // 2
-        powers = self.powers_[self.support_]
-        return np.any(powers[:, :d] != 0, axis=1), np.any(powers[:, d:] != 0, axis=1)
-
-    def _support_is_separable(self):
-        on_p, on_q = self._kept_terms_on()
-        return bool(np.all(~on_p | ~on_q))
-
-    def _separable_parts(self):
-        """Spaces and coefficients of ``T(p)`` and ``V(q)`` of a separable model."""
-        d = self.n_features_in_ // 2
-        powers, coef = self.powers_[self.support_], self.coef_[self.support_]
-        on_p, _ = self._kept_terms_on()
-        parts = []
-        for terms, variables in ((on_p, slice(0, d)), (~on_p, slice(d, 2 * d))):
-            part = ModelSpace(
-                self.domain_[variables], powers[terms][:, variables], self.periodic_[variables],
-                self._mixed()[variables],
-            )
-            parts.append((part, coef[terms]))
-        return parts
+        self._split = dynamics.separable_parts(self)
 
     def _after_fit(self, data):
         check_state_names(self.state_names, self.n_features_in_,
@@ -524,55 +462,16 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
         return self._eval_space.hessian_dot(X, self._eval_coef)
 
     def _checked_prediction(self, X):
-        # The compiled path takes a few states of a plain float64 array (what
-        # _validate_states passes unchanged, finite or not) with every check in
-        # one call; anything else, and any state that is not finite, goes the
-        # general way.
-        if not (use_numba() and type(X) is np.ndarray and X.dtype == np.float64 and X.ndim == 2
-                and 0 < X.shape[0] < LANE_ROWS and X.shape[1] == self.n_features_in_
-                and X.flags.c_contiguous and not hasattr(self, "feature_names_in_")):
-            return None
-        # The fitted attributes as fit left them (the kernel does not check
-        # shapes: a domain_ or damping_ set by hand goes the general way).
-        m = X.shape[1]
-        coef, damping, domain, periodic = self._eval_coef, self.damping_, self.domain_, self.periodic_
-        if not (_plain(coef, (self._eval_space.n_terms,)) and _plain(damping, (m // 2,))
-                and _plain(domain, (m, 2)) and _plain(periodic, (m,), np.bool_)):
-            return None
-        return compiled.checked_field(self._eval_space, X, coef, damping, domain, periodic,
-                                      DOMAIN_SLACK)
+        return dynamics.checked_prediction(self, X)
 
     def _vector_field(self, X):
-        if use_numba():
-            # One compiled pass with the structure applied (zero damping is none).
-            return compiled.field(self._eval_space, X, self._eval_coef, self.damping_)
-        return apply_structure(self._gradient(X), self._damping())
+        return dynamics.vector_field(self, X)
 
     def _jacobian(self, X):
-        # S applied to the first index of the Hessian.
-        return apply_structure(np.swapaxes(self._hessian(X), 1, 2), self._damping()).swapaxes(1, 2)
-
-    def _damping(self):
-        return self.damping_ if self.damping_.any() else None
-
+        return dynamics.jacobian(self, X)
 
     def _dynamics(self):
-        split = {}
-        if self._split is not None:
-            (kinetic, c_p), (potential, c_q) = self._split
-            split = dict(
-                kinetic_gradient=lambda p: kinetic.gradient_dot(p, c_p),
-                potential_gradient=lambda q: potential.gradient_dot(q, c_q),
-            )
-        return Dynamics(
-            self._vector_field, jacobian=self._jacobian,
-            damping=self._damping(), n_nodes=quadrature_nodes(self._eval_space),
-            phase_rates=self._eval_space.phase_rates if self._eval_space.has_fourier else None,
-            wrap=self._space.wrap if self.periodic_.any() else None, **split,
-            compiled=KernelModel(
-                "gradient", self._eval_space, self._eval_coef, self._damping(), self._split
-            ),
-        )
+        return dynamics.dynamics(self)
 
     def hamiltonian(self, X):
         """The learned Hamiltonian ``H~``, normalized to zero mean over the domain.
@@ -660,7 +559,3 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
         self._warn_outside(flat)
         return self._to_model(self._gradient(flat)).reshape(lead + (self.n_features_in_,))
 
-
-def _plain(a, shape, dtype=np.float64):
-    """Whether ``a`` is a C-ordered ndarray of this shape and dtype (as the kernels take it)."""
-    return type(a) is np.ndarray and a.dtype == dtype and a.shape == shape and a.flags.c_contiguous

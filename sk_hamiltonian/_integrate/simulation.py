@@ -210,14 +210,16 @@ def default_method(fit_on):
     return "avf" if fit_on == "steps" else "rk4"
 
 
-def default_step(method, *, fit_on, dt, time_scale):
+def default_step(method, *, describes_flow, dt, time_scale):
     """The step ``simulate`` takes when ``max_step`` is None.
 
-    The training step ``dt`` for the AVF method of a model fitted on steps
-    (the map it learned), else :data:`STEP_FRACTION` of the learned system's
-    ``time_scale``.
+    The training step ``dt`` for the AVF method of a model whose coefficients
+    describe the AVF map at that step (``describes_flow=False``: fitted on
+    steps, and not refined on the trajectories since), else
+    :data:`STEP_FRACTION` of the learned system's ``time_scale``
+    (``describes_flow=True``: they describe the flow).
     """
-    if fit_on == "steps" and method == "avf" and np.isfinite(dt):
+    if not describes_flow and method == "avf" and np.isfinite(dt):
         return dt
     return STEP_FRACTION[method] * time_scale
 
