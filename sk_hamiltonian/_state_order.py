@@ -224,3 +224,18 @@ def swap_raw(X, offset):
     if isinstance(X, (list, tuple)):
         return [swap(T) for T in X]
     return swap(X)
+
+
+def swap_search_inputs(trajectories, domain, spaces, dt):
+    """A search's raw trajectories, ``domain`` and ``spaces`` with the states' halves exchanged.
+
+    For ``state_order="qp"``: the search runs in the model's ``(p, q)``
+    order, with the per-state parameters exchanged alike.
+    """
+    n_states = trajectories[0].shape[1] - (1 if dt is None else 0)
+    trajectories = swap_raw(trajectories, 1 if dt is None else 0)
+    if domain is not None and np.ndim(domain) >= 1:
+        domain = swap_halves(np.asarray(domain, dtype=float), axis=0)
+    if spaces is not None:
+        spaces = [swap_space(space, n_states) for space in spaces]
+    return trajectories, domain, spaces

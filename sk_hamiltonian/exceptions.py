@@ -53,7 +53,13 @@ class IllConditionedWarning(UserWarning):
 
     Usually the data do not cover the domain (for example a few long trajectories
     in a high-degree space); more trajectories, a smaller ``domain`` or a lower
-    ``degree`` help.
+    ``degree`` help. Also raised by
+    :class:`~sk_hamiltonian.model_selection.HamiltonianSearchCV` when every
+    trajectory lies on one level of the chosen law's energy (one record, or
+    records all at one energy): such data determine the law only on that
+    level, ``H`` and ``H + (H - E)^2 g`` agree there for any ``g``, and the
+    search keeps the law with the fewest terms among those that agree;
+    trajectories at other energies pin it down.
     """
 
 

@@ -1238,6 +1238,20 @@ def test_spikes_are_named_and_left_out(tmp_path, capsys):
                      flags=re.M), out
     learned = re.search(r"^learned: (.*)$", out, flags=re.M).group(1)
     assert "cos(q)" in learned and "p^2" in learned
+    assert "one level of the learned energy" not in out
+
+
+@pytest.mark.slow
+def test_one_record_is_said_to_pin_the_law_on_one_energy_level_only(tmp_path, capsys):
+    # One time-stamped record (the time column reaches the check too); the
+    # many records of the spikes test above say nothing of it.
+    (record,) = stamped_pendulum(1, 2001, 0.01, noise=0.02)
+    path = write_csv(tmp_path / "record.csv", [record], time_name="t")
+    status, out, _ = run([str(path), "--quick", "--no-resample", "--output",
+                          str(tmp_path / "out")], capsys)
+    assert status == 0
+    assert re.search(r"^note: The data lie on one level of the learned energy: every "
+                     r"trajectory is at H~ = ", out, flags=re.M), out
 
 
 def test_too_few_trajectories_say_so_before_fitting(tmp_path, capsys):

@@ -84,6 +84,10 @@ def test_one_long_record_is_cut_into_blocked_segments_and_fitted():
     assert segments["n_records"] == 1 and segments["n_segments"] == 20
     assert search.n_splits_ == 5
     assert terms(search) == ["cos(q)", "p^2"]
+    # One record is one energy level: the search says the law is pinned only there.
+    one_level = search.preparation_["one_level"]
+    assert one_level is not None and one_level["n_trajectories"] == 20
+    assert "one level of the learned energy" in one_level["message"]
 
 
 def test_spikes_are_named_left_out_and_the_law_found():
@@ -195,6 +199,7 @@ def test_an_asymmetric_anharmonic_well_from_few_long_records():
         warnings.simplefilter("ignore")
         search = small_search(0.05).fit(X)
     assert search.preparation_["segments"]["n_records"] == 5
+    assert search.preparation_["one_level"] is None  # five records, five energies
     assert terms(search) == ["p^2", "q^2", "q^3", "q^4"]
     coef = {t.text: t.coefficient for t in hamiltonian_terms(search.best_estimator_[-1])}
     np.testing.assert_allclose([coef[k] for k in ("p^2", "q^2", "q^3", "q^4")],

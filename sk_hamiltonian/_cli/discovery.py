@@ -69,6 +69,8 @@ def run_discovery(args, data):
                 f"{', '.join(data.names)}."
             )
         raise UsageError(f"the search failed: {message}") from None
+    if search.preparation_.get("one_level"):
+        print(f"note: {search.preparation_['one_level']['message']}")
     results = search.cv_results_
     n_states = len(data.names)
     labels = [_describe(p, data.names[n_states // 2:]) for p in results["params"]]

@@ -4,7 +4,8 @@ The estimator runs the stages of its own modules on one set of folds:
 :mod:`._prepare` (the data: spikes, duplicates, long records, the folds),
 :mod:`._screen` (the model spaces), :mod:`._degrees` (degrees and thresholds,
 one finalist per layout and fit target), :mod:`._finalists` (the choice) and
-:mod:`._refine` (the chosen coefficients fitted to the trajectories);
+:mod:`._refine` (the chosen coefficients fitted to the trajectories) and
+:mod:`._energy_levels` (whether the data reach more than one energy level);
 :mod:`._search_checks` checks its list parameters.
 """
 
@@ -21,9 +22,10 @@ from sklearn.utils.validation import check_is_fitted
 from .._derivatives import DerivativeTransformer
 from .._hamiltonian import HamiltonianRegressor
 from .._inspection.terms import check_state_names
-from .._state_order import ORDER_WORDS, STATE_ORDERS, swap_halves, swap_raw, swap_space
+from .._state_order import ORDER_WORDS, STATE_ORDERS, swap_raw, swap_search_inputs, swap_space
 from .._trajectories import check_trajectories
 from ._degrees import failure_reason, score_fold, search_finalists
+from ._energy_levels import warn_one_level
 from ._finalists import choose
 from ._prepare import prepare
 from ._refine import refine_chosen
@@ -47,7 +49,6 @@ from ._search_checks import (
     check_values,
 )
 from ._selection import SELECTIONS
-
 
 
 class HamiltonianSearchCV(BaseEstimator):
@@ -267,8 +268,11 @@ class HamiltonianSearchCV(BaseEstimator):
         as spikes, numbered as in ``X``), ``dropped`` (trajectories left out
         whole), ``duplicates`` (each repeated trajectory and the one it
         repeats), ``segments`` (None, or how few long records were cut),
-        ``noise`` (the data's own noise model, ``(a_i, b_i)`` per variable)
-        and ``clean`` (whether the data look exact).
+        ``noise`` (the data's own noise model, ``(a_i, b_i)`` per variable),
+        ``clean`` (whether the data look exact) and, after the refit,
+        ``one_level`` (None, or ``span``, ``energy`` and ``message`` where
+        every trajectory lies on one level of the chosen law's energy and so
+        determines it only there: :class:`~sk_hamiltonian.IllConditionedWarning`).
     judgement_ : dict or None
         Stage 3's verdict among tied finalists keeping different terms
         (None when they keep the same): ``terms`` of each, their ``rss``
@@ -384,17 +388,12 @@ class HamiltonianSearchCV(BaseEstimator):
         swapped = self.state_order == "qp" and n_states % 2 == 0
         domain = self.domain
         if swapped:
-            offset = 1 if self.dt is None else 0
-            trajectories = swap_raw(trajectories, offset)
-            if domain is not None and np.ndim(domain) >= 1:
-                domain = swap_halves(np.asarray(domain, dtype=float), axis=0)
-            if spaces is not None:
-                spaces = [swap_space(space, n_states) for space in spaces]
+            trajectories, domain, spaces = swap_search_inputs(trajectories, domain, spaces,
+                                                              self.dt)
         # Stage 0: the data as the folds will see them.
         prepared = prepare(trajectories, self.dt, self.cv, groups)
         X, trajectories, folds = prepared.X, prepared.trajectories, prepared.folds
-        if spaces is None:
-            # Which positions look like angles, once spikes are left out.
+        if spaces is None:  # which positions look like angles, once spikes are left out
             offset = 1 if self.dt is None else 0
             angles = angle_like([T[:, offset:] for T in trajectories])
             spaces = auto_spaces(n_states, angles=angles)
@@ -456,8 +455,7 @@ class HamiltonianSearchCV(BaseEstimator):
             record.pop("fitted", None)
         self.preparation_ = prepared.report
         self.judgement_ = judgement
-        if swapped:
-            # Back to the columns' order, for the report and the chosen model.
+        if swapped:  # back to the columns' order, for the report and the chosen model
             spaces = [swap_space(space, n_states) for space in spaces]
         self.spaces_ = spaces
         self.kept_spaces_ = [spaces[k] for k in kept]
@@ -488,6 +486,8 @@ class HamiltonianSearchCV(BaseEstimator):
             self.refinement_ = refine_chosen(self.best_estimator_, X_columns, trajectories,
                                              self.dt, folds)
             self._say(f"refine: {self.refinement_['status']}")
+        self.preparation_["one_level"] = warn_one_level(self.best_estimator_[-1], X_columns,
+                                                        self.dt)
         self.refit_time_ = time.perf_counter() - refit_start
         self.search_time_ = time.perf_counter() - start
         return self
