@@ -12,9 +12,10 @@ Every case is a scene, a record shape, a noise and a data seed; for each:
     (``benchmarks/sindy_anchor.py``: the scene's library as an expert would
     choose it, smoothing or weak-form windows and the threshold by
     cross-validation on held-out trajectories, bagging), strong and weak
-    form. Records that the search cuts into segments are cut the same way
-    for PySINDy (segments of one length: the last samples of a record that do
-    not fill one are left to neither).
+    form, on the pieces the search's preparation gives (long records cut into
+    segments, records cut at the samples it leaves out as spikes), of one
+    length as PySINDy needs: the median piece's, longer pieces cut to it and
+    shorter ones left out.
 
 Scenes: the paper's pendulum; an anharmonic spring ``p^2/2 + q^2/2 + q^4/4``
 (:func:`~sk_hamiltonian.datasets.anharmonic_spring`, a scene the search was not
@@ -42,6 +43,7 @@ Run::
     python benchmarks/robustness_study.py --table noise      # the noise sweep
     python benchmarks/robustness_study.py --table shapes     # record shapes
     python benchmarks/robustness_study.py --table long       # Henon-Heiles, 3 x 2001
+    python benchmarks/robustness_study.py --table fresh      # two levels, 20 new seeds
     python benchmarks/robustness_study.py --table folds      # fold splits
     python benchmarks/robustness_study.py --table spikes     # dropped readings
     python benchmarks/robustness_study.py --report           # tables from the saved rows
@@ -122,6 +124,10 @@ TABLES = {
     "coupled": (["coupled_pendula"], ["many"], ["add2", "mult2"], range(5), METHODS),
     # The project issue's long-record case: Henon-Heiles as three records of 2 001.
     "long": (["henon_heiles"], ["three"], ["add2"], range(5), METHODS),
+    # The two noise-table levels behind one PySINDy form, on twenty seeds of
+    # their own: the noise table's levels share each seed's draw (scaled), so
+    # what its seeds show by chance shows at every level.
+    "fresh": (["pendulum"], ["many"], ["add8", "mult2"], range(10, 30), METHODS),
 }
 FOLD_CASES = [("spring", "0"), ("spring", "add1"), ("spring", "add3"), ("pendulum", "add8"),
               ("henon_heiles", "add2")]
@@ -238,6 +244,22 @@ def run_search(name, shape, noise, seed, cv=5):
                 preparation={k: v for k, v in search.preparation_.items() if k != "noise"})
 
 
+def _common_length(segments, folds):
+    """The prepared pieces of the median length or longer, cut to it, and the folds of them.
+
+    PySINDy takes trajectories of one length. Cutting every piece to the
+    shortest would hand it pieces of a dozen samples wherever the search's
+    preparation cut one record at a spike (a sample it left out) or a long
+    record's end; the shorter pieces are left out instead (a few samples in
+    thousands).
+    """
+    length = int(np.median([len(S) for S in segments]))
+    keep = np.flatnonzero([len(S) >= length for S in segments])
+    X = np.stack([segments[k][:length] for k in keep])
+    folds = [np.searchsorted(keep, fold[np.isin(fold, keep)]) for fold in folds]
+    return X, folds
+
+
 def run_sindy(name, shape, noise, seed, weak):
     try:
         sys.path.insert(0, str(HERE))
@@ -246,9 +268,7 @@ def run_sindy(name, shape, noise, seed, weak):
         return dict(skipped=f"PySINDy anchor not importable ({error})")
     cfg, system, X = scene_data(name, shape, noise, seed)
     prepared = prepare(list(X), cfg["dt"], 5, None)
-    segments, folds = prepared.trajectories, prepared.folds
-    length = min(len(S) for S in segments)
-    X = np.stack([S[:length] for S in segments])
+    X, folds = _common_length(prepared.trajectories, prepared.folds)
     start = time.process_time()
     try:
         anchor = fit_sindy_cv(X, cfg["dt"], library=cfg["sindy"], folds=folds, weak=weak,
@@ -350,7 +370,10 @@ def _lean_table(output):
     """The noise table's mean signed relative error of each true coefficient, over the seeds.
 
     Beside the largest absolute error: a lean of the same sign on most seeds
-    is a bias, which more data do not remove.
+    is a bias, which more data do not remove. A seed's levels of one kind share
+    its noise draw (the same standard normal sample, scaled by the level), so
+    the leans at different levels of a scene are not independent: a chance
+    lean of the draws reappears at every level, scaled by it.
     """
     scenes, (shape,), noises, seeds, _ = TABLES["noise"]
     rows = []
@@ -371,7 +394,8 @@ def _lean_table(output):
     return _rst_table(
         "the noise table's lean: each true coefficient's mean relative error, in %, "
         "with its standard error, over the seeds with the exact law (from the formulas "
-        "as printed, four significant digits)",
+        "as printed, four significant digits; a seed's levels of one kind share one "
+        "noise draw, so the rows of a scene and kind are not independent)",
         ["scene, noise", "seeds", "mean relative error (%)"], rows) if rows else ""
 
 
