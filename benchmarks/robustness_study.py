@@ -375,28 +375,34 @@ def _lean_table(output):
     the leans at different levels of a scene are not independent: a chance
     lean of the draws reappears at every level, scaled by it.
     """
-    scenes, (shape,), noises, seeds, _ = TABLES["noise"]
     rows = []
-    for name in scenes:
-        truth = SCENES[name]["truth"]
-        for noise in noises:
-            search = [r for r in _rows(output, (name, shape, noise), seeds, "search")
-                      if r["exact_support"]]
-            if len(search) < 2:
-                continue
-            found = [_coefficients_of(r["formula"]) for r in search]
-            cells = []
-            for term, value in truth.items():
-                lean = np.array([f[term] / value - 1 for f in found])
-                cells.append(f"{term}: {100 * lean.mean():+.3f} "
-                             f"± {100 * lean.std(ddof=1) / np.sqrt(len(lean)):.3f}")
-            rows.append([f"{name}, {noise}", len(search), "; ".join(cells)])
+    for table in ("noise", "fresh"):
+        scenes, (shape,), noises, seeds, _ = TABLES[table]
+        rows += [_lean_row(output, name, shape, noise, seeds, table)
+                 for name in scenes for noise in noises]
+    rows = [row for row in rows if row is not None]
     return _rst_table(
         "the noise table's lean: each true coefficient's mean relative error, in %, "
         "with its standard error, over the seeds with the exact law (from the formulas "
         "as printed, four significant digits; a seed's levels of one kind share one "
-        "noise draw, so the rows of a scene and kind are not independent)",
-        ["scene, noise", "seeds", "mean relative error (%)"], rows) if rows else ""
+        "noise draw, so the rows of a scene and kind are not independent; the fresh "
+        "table's seeds are others)",
+        ["table, scene, noise", "seeds", "mean relative error (%)"], rows) if rows else ""
+
+
+def _lean_row(output, name, shape, noise, seeds, table):
+    """One row of :func:`_lean_table`; None with fewer than two seeds of the exact law."""
+    search = [r for r in _rows(output, (name, shape, noise), seeds, "search")
+              if r["exact_support"]]
+    if len(search) < 2:
+        return None
+    found = [_coefficients_of(r["formula"]) for r in search]
+    cells = []
+    for term, value in SCENES[name]["truth"].items():
+        lean = np.array([f[term] / value - 1 for f in found])
+        cells.append(f"{term}: {100 * lean.mean():+.3f} "
+                     f"± {100 * lean.std(ddof=1) / np.sqrt(len(lean)):.3f}")
+    return [f"{table}, {name}, {noise}", len(search), "; ".join(cells)]
 
 
 def _rst_table(title, header, rows):

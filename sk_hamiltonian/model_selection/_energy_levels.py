@@ -22,6 +22,11 @@ from ..exceptions import DomainWarning, IllConditionedWarning
 # learned energy's range over the data's box: one level. Records at energies
 # drawn across a box spread over a good part of it (a tenth or more).
 MAX_LEVEL_SPAN = 0.01
+# ... beyond this many times one sample's energy spread along a trajectory:
+# the medians of pieces of one record, tens of samples each, spread over
+# about one sample's spread (their own noise, and the noise's bias of the
+# energy, which changes along an orbit).
+NOISE_SPREADS = 2.0
 # Points of the data's box at which the learned energy's range is taken.
 N_BOX_POINTS = 2048
 
@@ -40,9 +45,10 @@ def one_level(hamiltonian, pieces):
     -------
     found : dict or None
         None when the trajectories' (median) energies spread over more than
-        :data:`MAX_LEVEL_SPAN` of the learned energy's range over the data's
-        box (1st to 99th percentile) plus the robust spread of one sample's
-        energy along a trajectory; else ``span``, their spread as a fraction
+        :data:`MAX_LEVEL_SPAN` of the learned energy's range (1st to 99th
+        percentile) over the box of the data's bulk (each variable's 1st to
+        99th percentile) plus :data:`NOISE_SPREADS` times the robust spread
+        of one sample's energy along a trajectory; else ``span``, their spread as a fraction
         of that range, ``n_trajectories`` and ``energy``, the median energy of
         the data.
     """
@@ -52,7 +58,10 @@ def one_level(hamiltonian, pieces):
     # conserved law): levels closer than it cannot be told apart.
     spread = np.median([1.4826 * np.median(np.abs(E - np.median(E))) for E in along])
     states = np.concatenate(pieces)
-    low, high = states.min(axis=0), states.max(axis=0)
+    # The box of the data's bulk: a few records that escape to states ten
+    # times larger (Henon-Heiles') would make a polynomial's range over the
+    # whole box so wide that every spread of energies looks small.
+    low, high = np.quantile(states, [0.01, 0.99], axis=0)
     # A fixed draw: the same data always give the same verdict.
     box = np.random.default_rng(0).uniform(low, high, size=(N_BOX_POINTS, states.shape[1]))
     with np.errstate(all="ignore"):
@@ -60,13 +69,13 @@ def one_level(hamiltonian, pieces):
     over_box = over_box[np.isfinite(over_box)]
     if not over_box.size or not np.all(np.isfinite(energies)):
         return None
-    # Quantiles, not extremes: a corner of the box far from the data (a
-    # polynomial's) should not make every spread look small.
+    # Quantiles again: a corner of the box far from the data (a polynomial's)
+    # should not make every spread look small.
     width = np.subtract(*np.quantile(over_box, [0.99, 0.01]))
     if not width > 0:
         return None
     span = float(np.ptp(energies) / width)
-    if np.ptp(energies) > MAX_LEVEL_SPAN * width + spread:
+    if np.ptp(energies) > MAX_LEVEL_SPAN * width + NOISE_SPREADS * spread:
         return None
     return {"span": span, "n_trajectories": len(pieces), "energy": float(np.median(energies))}
 
