@@ -58,6 +58,27 @@ def test_no_spike_is_found_on_an_exact_coarsely_sampled_spring(seed):
     assert not np.any(find_spikes([0.05 * np.arange(41)] * len(X), list(X)))
 
 
+@pytest.mark.parametrize("seed", [0, 2])
+def test_no_spike_is_found_on_records_that_grow_under_relative_noise(seed):
+    # Five records growing 55-fold (an orbit that escapes) among 200 of the
+    # pendulum, 2 % relative noise: their last samples are far larger than
+    # the rest of the top size bin, and so is their noise (these seeds had two
+    # or three samples marked when a bin's noise level ignored that).
+    rng = np.random.default_rng(seed)
+    X = make_trajectories(single_pendulum(), 200, 40, dt=DT, random_state=seed)
+    grow = np.exp(0.1 * np.arange(41))[:, None] * rng.uniform(0.5, 1.5, size=(5, 1, 2))
+    X = np.concatenate([X, grow])
+    X = X * (1 + 0.02 * rng.standard_normal(X.shape))
+    assert not np.any(find_spikes(times(X), list(X)))
+
+
+def test_two_spikes_side_by_side_are_both_found():
+    X = pendulum(noise=0.02)
+    X[7, 17:19] = X[30, 8] = X[30, 10] = 1e6
+    found = np.array(find_spikes(times(X), list(X)))
+    assert sorted(map(tuple, np.argwhere(found))) == [(7, 17), (7, 18), (30, 8), (30, 10)]
+
+
 @pytest.mark.parametrize("kind", [dict(value=1e6), dict(value=50.0), dict(jump=1.0)])
 def test_spikes_are_found_exactly(kind):
     # A jump of 1 is about 25 times the noise (2 % of states of about 2).
