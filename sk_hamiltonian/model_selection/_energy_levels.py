@@ -16,6 +16,7 @@ import warnings
 
 import numpy as np
 
+from .._outliers import MAD_TO_STD
 from ..exceptions import DomainWarning, IllConditionedWarning
 
 # The trajectories' energies spread over less than this fraction of the
@@ -48,16 +49,16 @@ def one_level(hamiltonian, pieces):
         :data:`MAX_LEVEL_SPAN` of the learned energy's range (1st to 99th
         percentile) over the box of the data's bulk (each variable's 1st to
         99th percentile) plus :data:`NOISE_SPREADS` times the robust spread
-        of one sample's energy along a trajectory; else ``span``, their spread as a fraction
-        of that range, ``n_trajectories`` and ``energy``, the median energy of
-        the data.
+        of one sample's energy along a trajectory; else ``span``, their
+        spread as a fraction of that range, ``n_trajectories`` and
+        ``energy``, the median energy of the data.
     """
-    along = [hamiltonian(P) for P in pieces]
+    states = np.concatenate(pieces)
+    along = np.split(hamiltonian(states), np.cumsum([len(P) for P in pieces])[:-1])
     energies = np.array([np.median(E) for E in along])
     # One sample's energy spread along a trajectory (the noise's, for a
     # conserved law): levels closer than it cannot be told apart.
-    spread = np.median([1.4826 * np.median(np.abs(E - np.median(E))) for E in along])
-    states = np.concatenate(pieces)
+    spread = np.median([MAD_TO_STD * np.median(np.abs(E - np.median(E))) for E in along])
     # The box of the data's bulk: a few records that escape to states ten
     # times larger (Henon-Heiles') would make a polynomial's range over the
     # whole box so wide that every spread of energies looks small.
@@ -84,8 +85,8 @@ def one_level_message(found):
     """What :func:`one_level`'s finding means for the law, in a few sentences."""
     return (
         f"The data lie on one level of the learned energy: every trajectory is at H~ = "
-        f"{found['energy']:.4g} (within {100 * found['span']:.2g} % of its range over the "
-        f"box the data fill, noise included), as the segments of one record are. "
+        f"{found['energy']:.4g} (their median energies within {100 * found['span']:.2g} % of "
+        f"its range over the box the data fill), as the segments of one record are. "
         f"Trajectories on one energy level determine the law only on that level (H and "
         f"H + (H - E)^2 g agree there for any g), and among laws that agree on it the search "
         f"keeps the one with the fewest terms. Record trajectories at other energies to pin "
