@@ -73,22 +73,19 @@ def _neighbour_cubics(t, usable):
 
 
 def _cubic_residuals(t, Y, usable):
-    """Each sample's difference from its neighbours' cubic, in units of the difference's noise.
-
-    Returns the differences and the size of each sample's neighbourhood
-    (the second smallest magnitude of its nodes, which two spikes among them
-    do not move).
-    """
+    """Each sample's difference from its neighbours' cubic, in units of the difference's noise."""
     nodes, weights = _neighbour_cubics(t, usable)
-    around = Y[nodes]
-    predicted = np.einsum("jk,jkv->jv", weights, around)
+    predicted = np.einsum("jk,jkv->jv", weights, Y[nodes])
     scale = np.sqrt(1.0 + np.sum(weights**2, axis=1))[:, None]
-    return np.abs(Y - predicted) / scale, np.sort(np.abs(around), axis=1)[:, 1]
+    return np.abs(Y - predicted) / scale
 
 
 def _first_residuals(times, states):
-    """:func:`_cubic_residuals` of every trajectory with every sample usable.
+    """:func:`_cubic_residuals` of every trajectory with every sample usable, and sizes.
 
+    Each trajectory's entry is its differences and the size of each sample's
+    neighbourhood (the second smallest magnitude of its nodes, which two
+    spikes among them do not move), by which the noise is binned.
     Trajectories sampled at the same times share their cubics' weights: they
     are computed once and applied to all of them together.
     """
@@ -178,7 +175,7 @@ def find_spikes(times, states):
             if not new or np.sum(~flagged) - len(new) < MIN_SPIKE_SAMPLES:
                 break
             flagged[new] = True
-            residual, _ = _cubic_residuals(t, Y, ~flagged)
+            residual = _cubic_residuals(t, Y, ~flagged)
         for j in np.flatnonzero(flagged):
             flagged[j] = False
             flagged[j] = _is_spike(t, Y, flagged, j, limit)
@@ -197,13 +194,13 @@ def _is_spike(t, Y, flagged, j, limit, suspect=None):
     above them.
     """
     own = ~flagged
-    residual, _ = _cubic_residuals(t, Y, own)  # j is never a node of its own cubic
+    residual = _cubic_residuals(t, Y, own)  # j is never a node of its own cubic
     own[j] = False
     others = own if suspect is None else own & ~suspect
     # The neighbours are unmarked and not suspect themselves: a second spike
     # beside j would otherwise be among them, and hide j as j hides it.
     nodes, _ = _neighbour_cubics(t, others | (np.arange(len(t)) == j))
-    around, _ = _cubic_residuals(t, Y, others)
+    around = _cubic_residuals(t, Y, others)
     # The largest, not the median: on an exact record the truncation error
     # changes sign along it, and beside a near-zero of it an end sample's
     # extrapolation stood 4-8 times above the median of its neighbours (an
