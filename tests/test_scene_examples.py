@@ -3,8 +3,8 @@
 Each example of ``examples/scenes/`` runs in quick mode as a subprocess, as
 ``python examples/scenes/plot_*.py`` would, writing its figures and a JSON file
 of measured numbers into a temporary directory; the tests then check the files
-and the claims the example makes. The three run concurrently in one fixture
-(about 20 s of CPU time each, half a minute on two idle cores), so these tests
+and the claims the example makes. They run concurrently in one fixture
+(about 20 s of CPU time each, a minute on two idle cores), so these tests
 are marked slow (run with ``--runslow``; CI does, and its documentation build
 runs the examples too).
 
@@ -45,6 +45,7 @@ EXAMPLES = {
                                  ["sparse_threshold_path", "sparse_pendulum_errors"]),
     "plot_search": ("search", ["search_rollouts"]),
     "plot_intervals": ("intervals", ["intervals_band"]),
+    "plot_one_record": ("one_record", ["one_record"]),
 }
 
 
@@ -206,6 +207,21 @@ def test_search_finds_the_laws_in_their_spaces(runs):
         assert results["torsion"]["coefficients"][term] == pytest.approx(exact, rel=0.02), term
     # The averaged-vector-field rollouts keep H~ to round-off.
     assert results["pendulum"]["drift"] < 1e-10 and results["torsion"]["drift"] < 1e-10
+
+
+def test_one_record_is_said_to_lie_on_one_level_and_five_records_are_not(runs):
+    results = runs[2]["plot_one_record"]
+    # Both searches keep the pendulum's law (quick mode: -9.797 cos q + 0.5001 p^2
+    # from one record, -9.802 cos q + 0.4998 p^2 from five).
+    assert results["one_record"]["terms"] == ["cos(q)", "p^2"]
+    assert results["five_records"]["terms"] == ["cos(q)", "p^2"]
+    # Only the one record is said to lie on one energy level.
+    assert results["one_record"]["one_level"] is True
+    assert results["five_records"]["one_level"] is False
+    # Both models stay close to the truth off the recorded levels (quick mode:
+    # at most 0.0099 and 0.019 at T = 20).
+    assert max(results["one_record"]["errors_T20"]) < 0.05
+    assert max(results["five_records"]["errors_T20"]) < 0.05
 
 
 def test_intervals_keep_the_pendulum_terms_and_band_the_refits(runs):
