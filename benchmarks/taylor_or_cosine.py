@@ -49,33 +49,34 @@ NAME = "coupled_pendula"
 DT = SCENES[NAME]["dt"]
 
 
+def mixed_fit(X, threshold, denoise=5, fit_on="derivatives"):
+    """The mixed space at polynomial degree 2, thresholded, fitted to records ``X``."""
+    return make_pipeline(
+        DerivativeTransformer(dt=DT, degree=denoise),
+        HamiltonianRegressor(degree=2, mixed=[False, False, True, True], momentum_degree=2,
+                             threshold=threshold, fit_on=fit_on),
+    ).fit(list(X))[-1]
+
+
+def keeps_exact_terms(model):
+    return {term.text for term in hamiltonian_terms(model)} == SCENES[NAME]["terms"]
+
+
 def exact_terms_model(clean):
     """The exact law's terms fitted to noise-free records, or None if no threshold finds them."""
     for threshold in (0.01, 0.02, 0.05, 0.1):
-        model = make_pipeline(
-            DerivativeTransformer(dt=DT, degree=5),
-            HamiltonianRegressor(degree=2, mixed=[False, False, True, True], momentum_degree=2,
-                                 threshold=threshold),
-        ).fit(list(clean))[-1]
-        if {term.text for term in hamiltonian_terms(model)} == SCENES[NAME]["terms"]:
+        model = mixed_fit(clean, threshold)
+        if keeps_exact_terms(model):
             return model
     return None
 
 
 def noisy_supports(X):
     """Which thresholded fits of the mixed space at degree 2 keep the exact terms on noisy data."""
-    found = []
-    for denoise in (5, 8):
-        for fit_on in ("derivatives", "weak"):
-            for threshold in (0.01, 0.03):
-                model = make_pipeline(
-                    DerivativeTransformer(dt=DT, degree=denoise),
-                    HamiltonianRegressor(degree=2, mixed=[False, False, True, True],
-                                         momentum_degree=2, threshold=threshold, fit_on=fit_on),
-                ).fit(list(X))[-1]
-                if {term.text for term in hamiltonian_terms(model)} == SCENES[NAME]["terms"]:
-                    found.append(f"Q={denoise} {fit_on} {threshold}")
-    return found
+    return [f"Q={denoise} {fit_on} {threshold}"
+            for denoise in (5, 8) for fit_on in ("derivatives", "weak")
+            for threshold in (0.01, 0.03)
+            if keeps_exact_terms(mixed_fit(X, threshold, denoise, fit_on))]
 
 
 def run(shape, seed, supports_only=False):

@@ -120,8 +120,8 @@ fig, (ax_phase, ax_error) = plt.subplots(1, 2, figsize=(11, 4))
 q, p = np.meshgrid(np.linspace(-np.pi, np.pi, 200), np.linspace(-7.5, 7.5, 200))
 ax_phase.contour(q, p, pendulum.hamiltonian(np.stack([p, q], axis=-1)), levels=12,
                  colors="0.85", linewidths=0.8)
-for k, record in enumerate(five):
-    ax_phase.plot(record[:, 1], record[:, 0], ".", ms=1, color="C0",
+for k, samples in enumerate(five):
+    ax_phase.plot(samples[:, 1], samples[:, 0], ".", ms=1, color="C0",
                   label="five records" if k == 0 else None)
 ax_phase.plot(one[0][:, 1], one[0][:, 0], ".", ms=1, color="C3", label="one record")
 ax_phase.set_xlabel("q")
@@ -130,9 +130,8 @@ ax_phase.legend(loc="upper right", fontsize="small", markerscale=8)
 ax_phase.set_title("The records on the true energy's level sets")
 for name, color in (("one record", "C3"), ("five records", "C0")):
     ax_error.semilogy(energies, np.maximum(errors[name], 1e-16), "o-", color=color, label=name)
-for k, x0 in enumerate(starts):
-    ax_error.axvline(pendulum.hamiltonian(x0[None])[0], color="C3" if k == 0 else "C0",
-                     lw=0.8, ls=":")
+for k, level in enumerate(pendulum.hamiltonian(starts)):
+    ax_error.axvline(level, color="C3" if k == 0 else "C0", lw=0.8, ls=":")
 ax_error.set_xlabel("energy of the test state")
 ax_error.set_ylabel("relative error at T = 20")
 ax_error.legend(fontsize="small")
