@@ -253,4 +253,42 @@ def support_rule(estimator, space, threshold=None):
     design = estimator._design(space)
     return SupportRule(space, design.n_columns,
                        estimator.threshold if threshold is None else threshold,
-                       design.n_nonnegative, type(estimator).__name__)
+                       design.n_nonnegative, type(estimator).__name__,
+                       keep=named_terms(estimator, space))
+
+
+def named_terms(estimator, space):
+    """The mask of the estimator's ``terms`` over the readable terms of ``space`` (None: all).
+
+    ``terms`` holds multi-indices in the code and order of ``powers_`` (the
+    readable basis carries the fitting basis' multi-indices); a row that is not a term of ``space`` is refused with the space's
+    parameters and where to find its terms.
+    """
+    value = getattr(estimator, "terms", None)
+    if value is None:
+        return None
+    name = type(estimator).__name__
+    try:
+        terms = np.asarray(value, dtype=float)
+    except (TypeError, ValueError):
+        terms = None
+    if (terms is None or terms.ndim != 2 or terms.shape[1] != space.n_states
+            or terms.shape[0] == 0 or not np.all(np.isfinite(terms))
+            or np.any(terms != np.round(terms))):
+        raise ValueError(
+            f"{name}: terms must be a non-empty array of integer multi-indices of shape "
+            f"(n_terms, {space.n_states}), one row per term, as HamiltonianTerm.powers "
+            f"gives them; got {value!r}.")
+    terms = terms.astype(np.intp)
+    index = {tuple(row): j for j, row in enumerate(space.powers.tolist())}
+    missing = [tuple(row) for row in terms.tolist() if tuple(row) not in index]
+    if missing:
+        raise ValueError(
+            f"{name}: terms holds {len(missing)} multi-index(es) that are not terms of the "
+            f"model space (degree={estimator.degree}, mixed={estimator.mixed!r}, "
+            f"periodic={estimator.periodic!r}, momentum_degree={estimator.momentum_degree!r}), "
+            f"the first {missing[0]}. Take them from hamiltonian_terms(model)[i].powers of a "
+            f"model fitted in the same space (the constant is not a term), or widen the space.")
+    keep = np.zeros(len(space.powers), dtype=bool)
+    keep[[index[tuple(row)] for row in terms.tolist()]] = True
+    return keep

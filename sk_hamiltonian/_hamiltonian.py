@@ -215,6 +215,18 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
         attributes (``domain_``, ``periodic_``, ``mixed_``, ``powers_``,
         ``state_scale_``) are in the model's ``(p, q)`` order. Not available
         for a fit on dask arrays.
+    terms : array-like of shape (n_named, n_states) of int, default=None
+        Fit these terms of the space only: a law of known form, say the
+        coupled pendula's ``p1**2, p2**2, cos q1, cos q2, q1**2, q1*q2,
+        q2**2`` in a space with ``mixed`` positions. Each row is the
+        multi-index of one readable term, in the code and the ``(p, q)``
+        order of :func:`~sk_hamiltonian.inspection.hamiltonian_terms`'
+        ``powers`` (an exponent per ordinary variable; for a mixed one,
+        ``-(2k - 1)`` for ``cos(k x)`` and ``-2k`` for ``sin(k x)``; a
+        signed frequency per periodic one). A positive ``threshold`` drops
+        among them. Every term must belong to the space the other
+        parameters make (a row that does not is refused, with the space).
+        None: every term of the space.
 
     Attributes
     ----------
@@ -352,6 +364,7 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
         "damping": ["boolean"],
         "state_names": ["array-like", None],
         "state_order": [StrOptions(set(STATE_ORDERS))],
+        "terms": ["array-like", None],
     }
 
     def __init__(
@@ -359,7 +372,7 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
         separable=False, max_interaction=None, couplings=None, fit_on="derivatives",
         threshold=0.0, damping=False, solver="auto", verbose=0, n_resamples=0,
         resample="bootstrap", random_state=None, n_jobs=None, state_names=None,
-        state_order="pq",
+        state_order="pq", terms=None,
     ):
         super().__init__(
             degree, domain=domain, periodic=periodic, mixed=mixed,
@@ -372,6 +385,7 @@ class HamiltonianRegressor(BaseTrajectoryRegressor):
         self.damping = damping
         self.state_names = state_names
         self.state_order = state_order
+        self.terms = terms
 
     # ------------------------------------------------------------------ fit
     def _check_trajectory_input(self, X, y, sample_weight):

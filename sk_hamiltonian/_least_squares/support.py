@@ -25,6 +25,10 @@ changes the physics (``p**2`` becomes ``p**2 - c p``):
    with a warning: the last solve's support is returned with its
    coefficients).
 
+A rule may also name its terms (``keep``, a mask of the readable basis, from
+the regressors' ``terms``): the first solve is then on those terms alone, and
+the loop above, if any, only drops among them.
+
 Supports only shrink, so the loop ends after at most as many solves as there
 are terms; in practice after two to five.
 """
@@ -93,14 +97,17 @@ class SupportRule:
         Last unknowns constrained ``>= 0`` (never dropped).
     name : str, default="estimator"
         Named in warnings.
+    keep : ndarray of shape (space.n_terms,) of bool, default=None
+        The readable terms the fit may use; None: every term.
     """
 
-    def __init__(self, space, n_columns, threshold, n_nonnegative=0, name="estimator"):
+    def __init__(self, space, n_columns, threshold, n_nonnegative=0, name="estimator", keep=None):
         self.space = space
         self.n_columns = n_columns
         self.threshold = threshold
         self.n_nonnegative = n_nonnegative
         self.name = name
+        self.keep = keep
 
     def __call__(self, solve, column_norms):
         """The :class:`Solution` of the rule over a column solver (:func:`fit_support`)."""
@@ -108,8 +115,9 @@ class SupportRule:
         return fit_support(
             solve, column_norms, self.n_columns, n_basis=space.n_terms,
             threshold=self.threshold, n_nonnegative=self.n_nonnegative,
-            readable=space.readable_basis() if self.threshold else None,
-            name=self.name,
+            readable=(space.readable_basis() if self.threshold or self.keep is not None
+                      else None),
+            name=self.name, keep=self.keep,
         )
 
     def from_normal_equations(self, normal_equations, residual=None):
@@ -135,7 +143,8 @@ class SupportRule:
 
 
 def fit_support(solve, column_norms, n_columns, *, n_basis=None, threshold=0.0,
-                readable=None, n_nonnegative=0, max_iter=STLSQ_MAX_ITER, name="estimator"):
+                readable=None, n_nonnegative=0, max_iter=STLSQ_MAX_ITER, name="estimator",
+                keep=None):
     """Solve on every term, or on the terms sequential thresholding keeps.
 
     Parameters
@@ -160,12 +169,18 @@ def fit_support(solve, column_norms, n_columns, *, n_basis=None, threshold=0.0,
         Cap on the solves of the loop; reaching it warns.
     name : str, default="estimator"
         Named in warnings.
+    keep : ndarray of shape (n_basis,) of bool, default=None
+        The readable terms to solve on (``readable`` needed); the threshold,
+        if any, drops among them. None: every column.
 
     Returns
     -------
     solution : Solution
     """
     n_basis = n_columns - n_nonnegative if n_basis is None else n_basis
+    if keep is not None:
+        return _fit_named(solve, column_norms, readable.to_fitting, keep, threshold,
+                          n_nonnegative, max_iter, name)
     every = np.ones(n_columns, dtype=bool)
     if n_nonnegative:
         coef, cond, rank = solve_nonnegative_tail(solve, n_columns, n_nonnegative)
@@ -199,6 +214,22 @@ def fit_support(solve, column_norms, n_columns, *, n_basis=None, threshold=0.0,
         sum(s.n_kept for s in solutions), max(s.cond for s in solutions),
         n_solved - lost, n_solved, max(s.n_iter for s in solutions),
     )
+
+
+def _fit_named(solve, column_norms, to_fitting, keep, threshold, n_nonnegative, max_iter, name):
+    """:func:`fit_support` on the readable terms ``keep`` only (one target)."""
+    n_basis = to_fitting.shape[0]
+    reduced = _ReducedSolve(solve, to_fitting, n_basis, n_nonnegative)
+    keep = np.asarray(keep, dtype=bool)
+    terms, tail, cond, rank = reduced(keep)
+    if terms.ndim != 1:
+        raise ValueError(f"{name}: named terms take one target; got {terms.shape[1]}.")
+    if threshold == 0:
+        return _Part(keep, terms, tail, cond, rank, 1).solution(to_fitting, n_nonnegative)
+    padded = sparse.vstack([to_fitting, sparse.csc_array((n_nonnegative, n_basis))]).tocsc()
+    part = _stlsq(reduced, (terms, tail, cond, rank), column_norms(padded), threshold,
+                  max_iter, name, kept=keep)
+    return part.solution(to_fitting, n_nonnegative)
 
 
 class _ReducedSolve:
@@ -271,11 +302,11 @@ class _Part:
         return Solution(coef, support, n_kept, self.cond, self.rank, n_kept, self.n_iter)
 
 
-def _stlsq(reduced, first, norms, threshold, max_iter, name):
-    """The STLSQ loop for one target, from the solve on every term."""
+def _stlsq(reduced, first, norms, threshold, max_iter, name, kept=None):
+    """The STLSQ loop for one target, from the solve on every term (or on ``kept``)."""
     terms, tail, cond, rank = first
-    n_basis = terms.shape[0]
-    kept = np.ones(n_basis, dtype=bool)
+    if kept is None:
+        kept = np.ones(terms.shape[0], dtype=bool)
     values = terms
     n_iter = 1
     while True:

@@ -26,7 +26,7 @@ from .._state_order import ORDER_WORDS, STATE_ORDERS, swap_raw, swap_search_inpu
 from .._trajectories import check_trajectories
 from ._degrees import failure_reason, score_fold, search_finalists
 from ._energy_levels import warn_one_level
-from ._finalists import choose
+from ._finalists import decide
 from ._prepare import prepare
 from ._refine import refine_chosen
 from ._results import cv_results, describe_layout
@@ -103,7 +103,12 @@ class HamiltonianSearchCV(BaseEstimator):
        each set of terms is fitted to all the raw trajectories (output error,
        one noise model for all) and the lowest Bayesian information criterion
        decides (``judgement_``): the exact law against its Taylor series, on
-       no fold at all.
+       no fold at all. Where the choice keeps even powers ``q**4, q**6, ...``
+       of a polynomial position alone (the Taylor series of ``cos q``, which
+       a screen at degree 4 cannot tell from it at small angles), the same
+       terms with ``cos q`` in their place (and ``q**2``) are fitted and
+       scored as one more finalist (``terms``, stage ``"cosine"``) and
+       weighed against the choice by the same criterion.
     4. **Refine** (``refine="trajectories"``) the chosen model, refitted on
        all the data: the coefficients of its kept terms are fitted to the
        raw trajectories themselves, each simulated from an initial state of
@@ -242,10 +247,12 @@ class HamiltonianSearchCV(BaseEstimator):
         other candidates),
         and ``split<k>_equation_error``, ``mean_equation_error``,
         ``std_equation_error``, ``n_terms`` (on all the data), ``stage``
-        (``"screen"``, ``"search"`` or ``"finalist"``) and ``tied`` (the
-        finalists the data cannot tell from the best score).
+        (``"screen"``, ``"search"``, ``"finalist"``, or ``"cosine"`` for the
+        law offered in stage 3) and ``tied`` (the finalists the data cannot
+        tell from the best score).
     spaces_ : list of dict
-        The model spaces screened.
+        The model spaces screened (not the one of the law stage 3 may
+        offer, whose parameters are in ``cv_results_``).
     kept_spaces_ : list of dict
         The model spaces searched after the screen.
     n_splits_ : int
@@ -274,10 +281,12 @@ class HamiltonianSearchCV(BaseEstimator):
         every trajectory lies on one level of the chosen law's energy and so
         determines it only there: :class:`~sk_hamiltonian.IllConditionedWarning`).
     judgement_ : dict or None
-        Stage 3's verdict among tied finalists keeping different terms
-        (None when they keep the same): ``terms`` of each, their ``rss``
-        (weighted residual sums of squares), ``n_terms``, ``bic`` and
-        ``best``.
+        Stage 3's last verdict among sets of terms: ``kind`` (``"tied
+        finalists"``, keeping different terms, or ``"cosine law"``, the
+        choice against its terms with ``cos q`` in place of the Taylor
+        series), ``terms`` of each, their ``rss`` (weighted residual sums of
+        squares), ``n_terms``, ``bic`` and ``best``. None when no two sets
+        were weighed.
     refit_time_ : float
         Seconds of the final fit on all the data, the refinement included
         (0 with ``refit=False``).
@@ -441,23 +450,18 @@ class HamiltonianSearchCV(BaseEstimator):
                 "trajectories, lower degrees, or fewer folds." + failure_reason(failures)
             )
         # Stage 3: the choice among the finalists.
-        choice, tied, judgement = choose(records, finalists, self.selection, trajectories,
-                                         self.dt, prepared.report["noise"])
-        if choice is None:
-            raise ValueError(
-                "Every finalist's score failed in some fold: no candidate can be "
-                "chosen. Inspect cv_results_ or give more data; error_score='raise' shows "
-                "the first failure."
-            )
-        for i, flag in zip(finalists, tied):
-            records[i]["tied"] = bool(flag)
+        n_screened = len(spaces)
+        choice, judgement = decide(records, finalists, self.selection, spaces, layouts, folds,
+                                   trajectories, self.dt, prepared.report["noise"],
+                                   damping=self.damping, domain=domain, scorer=scorer,
+                                   error_score=self.error_score)
         for record in records:
             record.pop("fitted", None)
         self.preparation_ = prepared.report
         self.judgement_ = judgement
         if swapped:  # back to the columns' order, for the report and the chosen model
             spaces = [swap_space(space, n_states) for space in spaces]
-        self.spaces_ = spaces
+        self.spaces_ = spaces[:n_screened]
         self.kept_spaces_ = [spaces[k] for k in kept]
         self.n_splits_ = len(folds)
         self.cv_results_ = cv_results(records, spaces, len(folds), self.damping, self.domain)

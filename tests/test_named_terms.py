@@ -1,0 +1,141 @@
+"""``HamiltonianRegressor(terms=...)``: a fit on named terms only, and the search's cosine offer."""
+
+import warnings
+
+import numpy as np
+import pytest
+
+from sk_hamiltonian import DerivativeTransformer, HamiltonianRegressor
+from sk_hamiltonian.datasets import anharmonic_spring, coupled_pendula
+from sk_hamiltonian.inspection import hamiltonian_terms
+from sk_hamiltonian.model_selection import HamiltonianSearchCV
+from sk_hamiltonian.model_selection._finalists import cosine_terms
+
+
+def spring_states(n=400, seed=0):
+    """States and exact derivatives of ``H = p^2/2 + q^2/2 + q^4/4``."""
+    X = np.random.default_rng(seed).uniform(-1.5, 1.5, size=(n, 2))
+    p, q = X.T
+    return X, np.column_stack([-(q + q**3), p])
+
+
+def coefficients(model):
+    return {term.text: term.coefficient for term in hamiltonian_terms(model)}
+
+
+def test_named_terms_are_the_only_terms_fitted():
+    X, y = spring_states()
+    model = HamiltonianRegressor(degree=6, terms=[[2, 0], [0, 2], [0, 4]]).fit(X, y)
+    assert model.n_terms_ == 3
+    assert coefficients(model) == pytest.approx({"p^2": 0.5, "q^2": 0.5, "q^4": 0.25})
+    # A wrong form is fitted as given, by least squares on its own terms.
+    wrong = HamiltonianRegressor(degree=4, mixed=[False, True],
+                                 terms=[[2, 0], [0, 2], [0, -1]]).fit(X, y)
+    assert sorted(coefficients(wrong)) == ["cos(q)", "p^2", "q^2"]
+    assert wrong.score(X, y) < model.score(X, y)
+
+
+def test_named_terms_match_the_dense_fit_restricted_by_hand():
+    # The named fit is the least-squares fit on those columns of the readable
+    # basis, whatever the solver.
+    X, y = spring_states()
+    y = y + 0.05 * np.random.default_rng(1).standard_normal(y.shape)
+    named = [[2, 0], [0, 2], [0, 4], [1, 1]]
+    fits = [HamiltonianRegressor(degree=4, terms=named, solver=solver).fit(X, y)
+            for solver in ("lstsq", "normal")]
+    # By hand: dH/dp and dH/dq of each named monomial against (dq/dt, -dp/dt).
+    p, q = X.T
+    columns = [(2 * p, 0 * q), (0 * p, 2 * q), (0 * p, 4 * q**3), (q, p)]
+    A = np.vstack([np.concatenate(c) for c in columns]).T
+    b = np.concatenate([y[:, 1], -y[:, 0]])
+    expected = np.linalg.lstsq(A, b, rcond=None)[0]
+    for model in fits:
+        got = coefficients(model)
+        np.testing.assert_allclose([got["p^2"], got["q^2"], got["q^4"], got["p*q"]], expected,
+                                   rtol=1e-8)
+
+
+def test_a_threshold_drops_among_the_named_terms_only():
+    X, y = spring_states()
+    model = HamiltonianRegressor(degree=4, threshold=0.01,
+                                 terms=[[2, 0], [0, 2], [0, 4], [0, 3], [1, 1]]).fit(X, y)
+    assert sorted(coefficients(model)) == ["p^2", "q^2", "q^4"]
+
+
+def test_named_terms_read_in_the_models_order_with_columns_in_qp_order():
+    X, y = spring_states()
+    model = HamiltonianRegressor(degree=4, state_order="qp",
+                                 terms=[[2, 0], [0, 2], [0, 4]]).fit(X[:, ::-1], y[:, ::-1])
+    assert coefficients(model) == pytest.approx({"p^2": 0.5, "q^2": 0.5, "q^4": 0.25})
+
+
+@pytest.mark.parametrize("terms, message", [
+    ([[2, 0], [0, -1]], r"terms holds 1 multi-index\(es\) that are not terms of the model "
+                        r"space .* the first \(0, -1\)"),
+    ([2, 0], r"terms must be a non-empty array of integer multi-indices of shape \(n_terms, 2\)"),
+    ([[2.5, 0]], "terms must be a non-empty array of integer"),
+    ([[0, 0]], r"not terms of the model space .* \(the constant is not a term\)"),
+])
+def test_terms_outside_the_space_are_refused_with_the_argument_named(terms, message):
+    X, y = spring_states()
+    with pytest.raises(ValueError, match=message):
+        HamiltonianRegressor(degree=4, terms=terms).fit(X, y)
+
+
+def test_the_cosine_offer_replaces_even_powers_of_a_position_alone():
+    X, y = spring_states()
+    y = y + 0.05 * np.random.default_rng(1).standard_normal(y.shape)  # every term non-zero
+    model = HamiltonianRegressor(degree=6, terms=[[2, 0], [0, 2], [0, 4], [0, 6], [2, 2]]).fit(X, y)
+    assert len(hamiltonian_terms(model)) == 5
+    mixed, terms = cosine_terms(model)
+    assert mixed == [False, True]
+    # q^4 and q^6 alone become cos q; p^2 q^2 is not a power of q alone.
+    assert sorted(map(tuple, terms)) == [(0, -1), (0, 2), (2, 0), (2, 2)]
+    odd = HamiltonianRegressor(degree=4, terms=[[2, 0], [0, 2], [0, 3]]).fit(X, y)
+    assert cosine_terms(odd) is None
+
+
+@pytest.mark.slow
+def test_few_long_records_of_coupled_pendula_give_their_cosine_law():
+    # From five records of 801 samples at small angles, the screen (at degree
+    # 4) keeps the polynomial space, whose thresholded fits keep the Taylor
+    # series (q1^4, q2^4); the trajectories tell it from the cosine law.
+    # Their energies below 1.5, where neither pendulum reaches the top.
+    system = coupled_pendula(coupling=0.5, g=1.0)
+    box = np.asarray(system.domain, dtype=float)
+    rng = np.random.default_rng(0)
+    x0 = []
+    while len(x0) < 5:
+        x = rng.uniform(box[:, 0], box[:, 1], size=(64, 4))
+        x0.extend(x[system.hamiltonian(x) < 1.5])
+    X = system.solve(np.array(x0[:5]), 0.05 * np.arange(801), max_step=0.005)
+    X = X + 0.02 * np.sqrt(np.mean(X.reshape(-1, 4) ** 2, axis=0)) * rng.standard_normal(X.shape)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        search = HamiltonianSearchCV(dt=0.05).fit(X)
+    model = search.best_estimator_[-1]
+    assert sorted(coefficients(model)) == sorted(
+        ["p1^2", "p2^2", "cos(q1)", "cos(q2)", "q1^2", "q1*q2", "q2^2"])
+    assert search.judgement_["kind"] == "cosine law"
+    assert search.judgement_["best"] == 1
+    assert search.cv_results_["stage"][search.best_index_] == "cosine"
+    assert coefficients(model)["cos(q1)"] == pytest.approx(-1.0, rel=0.05)
+    # The chosen pipeline refits to the same terms from its parameters alone.
+    refit = search.best_estimator_.__class__(search.best_estimator_.steps).fit(X)
+    assert sorted(coefficients(refit[-1])) == sorted(coefficients(model))
+
+
+def test_the_spring_keeps_its_quartic_against_the_cosine_offer():
+    rng = np.random.default_rng(0)
+    X = anharmonic_spring().solve(rng.uniform(-1.5, 1.5, size=(60, 2)), 0.05 * np.arange(41),
+                                  max_step=0.005)
+    X = X + 0.01 * np.sqrt(np.mean(X.reshape(-1, 2) ** 2, axis=0)) * rng.standard_normal(X.shape)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        search = HamiltonianSearchCV(dt=0.05, denoise_degrees=("finite_difference", 5),
+                                     degrees=(4,)).fit(X)
+    assert sorted(coefficients(search.best_estimator_[-1])) == ["p^2", "q^2", "q^4"]
+    judgement = search.judgement_
+    assert judgement["kind"] == "cosine law" and judgement["best"] == 0
+    assert judgement["rss"][1] > judgement["rss"][0]
+    assert "cos(q)" in judgement["terms"][1]
