@@ -5,7 +5,7 @@ import warnings
 import numpy as np
 import pytest
 
-from sk_hamiltonian import DerivativeTransformer, HamiltonianRegressor
+from sk_hamiltonian import HamiltonianRegressor
 from sk_hamiltonian.datasets import anharmonic_spring, coupled_pendula
 from sk_hamiltonian.inspection import hamiltonian_terms
 from sk_hamiltonian.model_selection import HamiltonianSearchCV
@@ -70,8 +70,8 @@ def test_named_terms_read_in_the_models_order_with_columns_in_qp_order():
 
 
 @pytest.mark.parametrize("terms, message", [
-    ([[2, 0], [0, -1]], r"terms holds 1 multi-index\(es\) that are not terms of the model "
-                        r"space .* the first \(0, -1\)"),
+    ([[2, 0], [0, -1]], (r"terms holds 1 multi-index\(es\) that are not terms of the model "
+                         r"space .* the first \(0, -1\)")),
     ([2, 0], r"terms must be a non-empty array of integer multi-indices of shape \(n_terms, 2\)"),
     ([[2.5, 0]], "terms must be a non-empty array of integer"),
     ([[0, 0]], r"not terms of the model space .* \(the constant is not a term\)"),
@@ -139,3 +139,35 @@ def test_the_spring_keeps_its_quartic_against_the_cosine_offer():
     assert judgement["kind"] == "cosine law" and judgement["best"] == 0
     assert judgement["rss"][1] > judgement["rss"][0]
     assert "cos(q)" in judgement["terms"][1]
+
+
+@pytest.mark.slow
+def test_an_offer_the_segments_cannot_show_is_not_taken():
+    # One record of the spring (4 001 samples, 2 % noise): on this draw the
+    # cosine law's residual sum is lower than the true quartic's, by less than
+    # twice the standard error of the difference over the fit's segments.
+    rng = np.random.default_rng(6)
+    spring = anharmonic_spring()
+    box = np.asarray(spring.domain, dtype=float)
+    x0 = rng.uniform(box[:, 0], box[:, 1], size=(1, 2))
+    X = spring.solve(x0, 0.05 * np.arange(4001), max_step=0.005)
+    X = X + 0.02 * np.sqrt(np.mean(X.reshape(-1, 2) ** 2, axis=0)) * rng.standard_normal(X.shape)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        search = HamiltonianSearchCV(dt=0.05).fit(X)
+    assert sorted(coefficients(search.best_estimator_[-1])) == ["p^2", "q^2", "q^4"]
+    judgement = search.judgement_
+    assert judgement["kind"] == "cosine law" and judgement["best"] == 0
+    assert judgement["bic"][1] < judgement["bic"][0]
+    assert 0 < judgement["gain"] < 2 * judgement["gain_se"]
+
+
+def test_the_offers_gain_is_summed_over_segments_with_its_standard_error():
+    from sk_hamiltonian.model_selection._finalists import offered_gain
+
+    chosen, offered = np.array([3.0, 5.0, 4.0, 8.0]), np.array([2.0, 5.0, 3.0, 4.0])
+    gain, se = offered_gain([chosen, offered])
+    difference = chosen - offered
+    assert gain == pytest.approx(6.0)
+    assert se == pytest.approx(2 * np.std(difference, ddof=1))
+    assert np.isnan(offered_gain([chosen, None])[0])

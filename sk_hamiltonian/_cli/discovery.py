@@ -71,6 +71,11 @@ def run_discovery(args, data):
         raise UsageError(f"the search failed: {message}") from None
     if search.preparation_.get("one_level"):
         print(f"note: {search.preparation_['one_level']['message']}")
+    judgement = search.judgement_
+    if judgement is not None and judgement["kind"] == "cosine law" and judgement["best"] == 1:
+        print(f"note: the trajectories prefer cos q to the Taylor series the candidates kept "
+              f"(weighted residual sum lower by {judgement['gain']:.3g}, standard error "
+              f"{judgement['gain_se']:.2g}); the cosine law is chosen")
     results = search.cv_results_
     n_states = len(data.names)
     labels = [_describe(p, data.names[n_states // 2:]) for p in results["params"]]
@@ -118,6 +123,8 @@ def _describe(params, positions):
         parts.append("mechanical")
     if get("hamiltonianregressor__separable"):
         parts.append("separable")
+    if get("hamiltonianregressor__terms") is not None:
+        parts.append(f"{len(get('hamiltonianregressor__terms'))} named terms")
     parts.append(f"n={get('hamiltonianregressor__degree')}")
     threshold = get("hamiltonianregressor__threshold", 0.0)
     if threshold:
