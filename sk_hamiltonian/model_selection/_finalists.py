@@ -25,6 +25,7 @@ import numpy as np
 from .._trajectory_fit import KeptTerms, TrajectoryFitError, fit_trajectories, segmented, split_times
 from ..inspection import hamiltonian_terms
 from ._degrees import search_unit
+from ._screen import PER_COORDINATE_DOF
 from ._selection import pick_among
 
 # At most this many distinct sets of terms are judged by their trajectory fits
@@ -242,7 +243,9 @@ def offer_cosine_law(records, finalists, choice, spaces, layouts, folds, traject
                      **search):
     """The chosen finalist against its terms with ``cos q`` summed back (:func:`cosine_terms`).
 
-    The substitute is fitted and scored as a finalist of the chosen layout,
+    Up to two degrees of freedom (``PER_COORDINATE_DOF``), where every
+    position is screened as polynomial, periodic and mixed. The substitute
+    is fitted and scored as a finalist of the chosen layout,
     fit target and degree, in the chosen space with those positions mixed
     (appended to ``spaces``; its record, stage ``"cosine"``, to ``records``
     and ``finalists``), then both are weighed by :func:`judge_supports`.
@@ -270,6 +273,10 @@ def offer_cosine_law(records, finalists, choice, spaces, layouts, folds, traject
         The verdict, with ``terms`` of both; None when nothing was offered.
     """
     chosen = records[finalists[choice]]
+    if chosen["fitted"].n_features_in_ // 2 > PER_COORDINATE_DOF:
+        # Beyond, the spaces are mixed only where the data look like angles,
+        # and a chain's quartic springs (FPU) would cost an offer each search.
+        return choice, None
     substitute = cosine_terms(chosen["fitted"])
     if substitute is None:
         return choice, None

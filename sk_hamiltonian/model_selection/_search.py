@@ -103,12 +103,10 @@ class HamiltonianSearchCV(BaseEstimator):
        each set of terms is fitted to all the raw trajectories (output error,
        one noise model for all) and the lowest Bayesian information criterion
        decides (``judgement_``): the exact law against its Taylor series, on
-       no fold at all. Where the choice keeps even powers ``q**4, q**6, ...``
-       of a polynomial position alone (the Taylor series of ``cos q``, which
-       a screen at degree 4 cannot tell from it at small angles), the same
-       terms with ``cos q`` in their place (and ``q**2``) are fitted and
-       scored as one more finalist (``terms``, stage ``"cosine"``) and
-       weighed against the choice by the same criterion.
+       no fold at all. Up to two degrees of freedom, a choice that keeps
+       even powers of a polynomial position alone (``cos q``'s Taylor series)
+       is weighed so against its terms with ``cos q`` in their place, fitted
+       and scored as one more finalist (``terms``, stage ``"cosine"``).
     4. **Refine** (``refine="trajectories"``) the chosen model, refitted on
        all the data: the coefficients of its kept terms are fitted to the
        raw trajectories themselves, each simulated from an initial state of
