@@ -201,13 +201,18 @@ def judge_supports(models, trajectories, dt, noise):
 
 
 def cosine_terms(regressor):
-    """The chosen terms with each position's Taylor series of ``cos q`` summed back, or None.
+    """The chosen terms with each position's Taylor series of ``-cos q`` summed back, or None.
 
     A position ``q_i`` that is neither periodic nor mixed and whose kept terms
-    include even powers ``q_i**4, q_i**6, ...`` of it alone gets ``cos q_i``
-    in their place (and ``q_i**2``, if it was not kept): at small angles ``cos
-    q``, ``q**2`` and ``q**4`` are nearly collinear, so a screen at a degree
-    that holds ``q**4`` may keep the series where the law is ``cos q``.
+    include ``q_i**4`` alone with a negative coefficient (a potential that
+    softens, as ``-g cos q`` does) gets ``cos q_i`` in place of its even
+    powers ``q_i**4, q_i**6, ...`` alone (and ``q_i**2``, if it was not kept):
+    at small angles ``cos q``, ``q**2`` and ``q**4`` are nearly collinear, so a
+    screen at a degree that holds ``q**4`` may keep the series where the law is
+    ``cos q``. A hardening quartic (a Duffing spring's, a double well's) is
+    left as it is: its cosine would be an inverted pendulum held up by a
+    spring, which at 20 % noise the spring's records preferred on two seeds
+    of ten.
 
     Returns
     -------
@@ -217,23 +222,25 @@ def cosine_terms(regressor):
         mixed space (:class:`~sk_hamiltonian.HamiltonianRegressor`'s
         ``terms``); None when no position qualifies.
     """
-    powers = regressor.powers_[KeptTerms(regressor).terms]
+    kept = KeptTerms(regressor)
+    powers, values = regressor.powers_[kept.terms], kept.theta0
     n_states = powers.shape[1]
-    d = n_states // 2
     mixed = np.asarray(regressor.mixed_, dtype=bool)
     free = ~(mixed | np.asarray(regressor.periodic_, dtype=bool))
-    alone = np.count_nonzero(powers, axis=1) == 1
     swapped = np.zeros(n_states, dtype=bool)
-    for i in range(d, n_states):
-        series = alone & (powers[:, i] >= 4) & (powers[:, i] % 2 == 0)
-        if free[i] and series.any():
-            swapped[i] = True
-            powers = powers[~series]
-            for code in (-1, 2):  # cos q_i (code -1 of a mixed variable), then q_i**2
-                row = np.zeros(n_states, dtype=powers.dtype)
-                row[i] = code
-                if not np.any(np.all(powers == row, axis=1)):
-                    powers = np.vstack([powers, row])
+    for i in range(n_states // 2, n_states):
+        alone = np.count_nonzero(powers, axis=1) == 1
+        quartic = alone & (powers[:, i] == 4)
+        if not (free[i] and quartic.any() and values[quartic][0] < 0):
+            continue
+        swapped[i] = True
+        keep = ~(alone & (powers[:, i] >= 4) & (powers[:, i] % 2 == 0))
+        powers, values = powers[keep], values[keep]
+        for code in (-1, 2):  # cos q_i (code -1 of a mixed variable), then q_i**2
+            row = np.zeros(n_states, dtype=powers.dtype)
+            row[i] = code
+            if not np.any(np.all(powers == row, axis=1)):
+                powers, values = np.vstack([powers, row]), np.append(values, 0.0)
     if not swapped.any():
         return None
     return (mixed | swapped).tolist(), powers.tolist()
