@@ -101,6 +101,13 @@ def test_the_cosine_offer_replaces_a_softening_series_of_a_position_alone():
     assert cosine_terms(odd) is None
 
 
+def searched(X, **params):
+    """The default search (dt = 0.05) on ``X``, its warnings silenced."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return HamiltonianSearchCV(dt=0.05, **params).fit(X)
+
+
 def coupled_records(n_records, n_times, seed):
     """Records of the coupled pendula below the energy where a pendulum goes over the top, 2 % noise."""
     system = coupled_pendula(coupling=0.5, g=1.0)
@@ -120,9 +127,7 @@ def test_few_long_records_of_coupled_pendula_give_their_cosine_law():
     # 4) keeps the polynomial space, whose thresholded fits keep the Taylor
     # series (q1^4, q2^4); the trajectories tell it from the cosine law.
     X = coupled_records(5, 801, seed=0)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        search = HamiltonianSearchCV(dt=0.05).fit(X)
+    search = searched(X)
     model = search.best_estimator_[-1]
     assert sorted(coefficients(model)) == sorted(
         ["p1^2", "p2^2", "cos(q1)", "cos(q2)", "q1^2", "q1*q2", "q2^2"])
@@ -140,10 +145,7 @@ def test_the_spring_keeps_its_quartic_against_the_cosine_offer():
     X = anharmonic_spring().solve(rng.uniform(-1.5, 1.5, size=(60, 2)), 0.05 * np.arange(41),
                                   max_step=0.005)
     X = X + 0.01 * np.sqrt(np.mean(X.reshape(-1, 2) ** 2, axis=0)) * rng.standard_normal(X.shape)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        search = HamiltonianSearchCV(dt=0.05, denoise_degrees=("finite_difference", 5),
-                                     degrees=(4,)).fit(X)
+    search = searched(X, denoise_degrees=("finite_difference", 5), degrees=(4,))
     assert sorted(coefficients(search.best_estimator_[-1])) == ["p^2", "q^2", "q^4"]
     # Its quartic hardens: no cosine law is offered.
     assert "cosine" not in set(search.cv_results_["stage"])
@@ -155,10 +157,7 @@ def test_an_offer_the_segments_cannot_show_is_not_taken():
     # One record of the coupled pendula (4 001 samples): on this draw the
     # cosine law's residual sum is lower than the Taylor series', by less than
     # twice the standard error of the difference over the fit's segments.
-    X = coupled_records(1, 4001, seed=2)
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        search = HamiltonianSearchCV(dt=0.05).fit(X)
+    search = searched(coupled_records(1, 4001, seed=2))
     assert "q1^4" in coefficients(search.best_estimator_[-1])
     judgement = search.judgement_
     assert judgement["kind"] == "cosine law" and judgement["best"] == 0
