@@ -261,8 +261,9 @@ def named_terms(estimator, space):
     """The mask of the estimator's ``terms`` over the readable terms of ``space`` (None: all).
 
     ``terms`` holds multi-indices in the code and order of ``powers_`` (the
-    readable basis carries the fitting basis' multi-indices); a row that is not a term of ``space`` is refused with the space's
-    parameters and where to find its terms.
+    readable basis carries the fitting basis' multi-indices); a row that is
+    not a term of ``space`` is refused with the space's parameters and where
+    to find its terms.
     """
     value = getattr(estimator, "terms", None)
     if value is None:

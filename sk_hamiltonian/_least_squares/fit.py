@@ -40,12 +40,12 @@ def solve(problem, solver, rule, *, fall_back=False, progress=None, name="estima
     if progress is None:
         progress = _silent
     block_progress = progress("block {0}: {1} equations accumulated")
+    # Named terms are a solve on some columns: the design must stay whole.
     named = getattr(rule, "keep", None) is not None
     single_solve = rule.threshold == 0 and not problem.n_nonnegative and not named
     try:
         solve_, norms = column_solver(
-            problem, solver, single_solve=single_solve,
-            many_supports=rule.threshold > 0,
+            problem, solver, single_solve=single_solve, many_supports=rule.threshold > 0,
             fall_back=fall_back,
             progress=progress("iteration {0}: relative normal residual {1:.2e}"),
             block_progress=block_progress, name=name,
