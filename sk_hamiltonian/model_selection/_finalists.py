@@ -252,10 +252,13 @@ def offer_cosine_law(records, finalists, choice, spaces, layouts, folds, traject
 
     Up to two degrees of freedom (``PER_COORDINATE_DOF``), where every
     position is screened as polynomial, periodic and mixed. The substitute
-    is fitted and scored as a finalist of the chosen layout,
-    fit target and degree, in the chosen space with those positions mixed
-    (appended to ``spaces``; its record, stage ``"cosine"``, to ``records``
-    and ``finalists``), then both are weighed by :func:`judge_supports`.
+    is fitted and scored as a finalist of the chosen layout, fit target and
+    degree, in the chosen space with those positions mixed (appended to
+    ``spaces``; its record, stage ``"cosine"``, to ``records`` and
+    ``finalists``), then both are weighed by :func:`judge_supports`, and the
+    substitute is chosen where the criterion prefers it and the choice's
+    residual sum exceeds its own by ``OFFER_Z`` standard errors of the
+    difference over the fit's segments (:func:`offered_gain`).
 
     Parameters
     ----------
@@ -277,7 +280,9 @@ def offer_cosine_law(records, finalists, choice, spaces, layouts, folds, traject
     -------
     choice : int
     judgement : dict or None
-        The verdict, with ``terms`` of both; None when nothing was offered.
+        :func:`judge_supports`' verdict, with ``terms`` of both, ``gain`` and
+        ``gain_se`` (:func:`offered_gain`) and ``best`` the one chosen; None
+        when nothing was offered.
     """
     chosen = records[finalists[choice]]
     if chosen["fitted"].n_features_in_ // 2 > PER_COORDINATE_DOF:
@@ -304,9 +309,9 @@ def offer_cosine_law(records, finalists, choice, spaces, layouts, folds, traject
     finalists.append(len(records) - 1)
     judgement["gain"], judgement["gain_se"] = offered_gain(judgement["segment_rss"])
     # Both laws have about as many terms: the criterion is their residual
-    # sums, whose difference on one orbit can be chance (the spring's q**4
-    # lost to cos q by 0.3 of 8 000 on one record). The offer is taken only
-    # where the segments show it.
+    # sums, whose difference on one orbit can be chance (one record of the
+    # coupled pendula: 2.4 of 16 000, with a standard error of 1.8 over its
+    # segments). The offer is taken only where the segments show it.
     if judgement["best"] == 1 and judgement["gain"] > OFFER_Z * judgement["gain_se"]:
         return len(finalists) - 1, judgement
     judgement["best"] = 0

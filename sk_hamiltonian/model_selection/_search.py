@@ -280,11 +280,11 @@ class HamiltonianSearchCV(BaseEstimator):
         determines it only there: :class:`~sk_hamiltonian.IllConditionedWarning`).
     judgement_ : dict or None
         Stage 3's last verdict among sets of terms: ``kind`` (``"tied
-        finalists"``, keeping different terms, or ``"cosine law"``, the
-        choice against its terms with ``cos q`` in place of the Taylor
-        series), ``terms`` of each, their ``rss`` (weighted residual sums of
-        squares), ``n_terms``, ``bic`` and ``best``. None when no two sets
-        were weighed.
+        finalists"``, or ``"cosine law"``: the choice against its terms with
+        ``cos q`` in place of the Taylor series, with ``gain`` and
+        ``gain_se``), ``terms`` of each, their ``rss`` (weighted residual
+        sums of squares; per segment ``segment_rss``), ``n_terms``, ``bic``
+        and ``best``. None when no two sets were weighed.
     refit_time_ : float
         Seconds of the final fit on all the data, the refinement included
         (0 with ``refit=False``).
