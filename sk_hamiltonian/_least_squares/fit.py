@@ -41,8 +41,7 @@ def solve(problem, solver, rule, *, fall_back=False, progress=None, name="estima
         progress = _silent
     block_progress = progress("block {0}: {1} equations accumulated")
     # Named terms are a solve on some columns: the design must stay whole.
-    named = getattr(rule, "keep", None) is not None
-    single_solve = rule.threshold == 0 and not problem.n_nonnegative and not named
+    single_solve = rule.threshold == 0 and not problem.n_nonnegative and rule.keep is None
     try:
         solve_, norms = column_solver(
             problem, solver, single_solve=single_solve, many_supports=rule.threshold > 0,

@@ -190,8 +190,7 @@ def fit_support(solve, column_norms, n_columns, *, n_basis=None, threshold=0.0,
     if threshold == 0:
         return Solution(coef, support, support.sum() + n_nonnegative, cond, rank, n_columns, 1)
     to_fitting = readable.to_fitting
-    padded = sparse.vstack([to_fitting, sparse.csc_array((n_nonnegative, n_basis))]).tocsc()
-    norms = column_norms(padded)
+    norms = _readable_norms(column_norms, to_fitting, n_nonnegative)
     terms = readable.from_fitting @ coef[:n_basis]
     reduced = _ReducedSolve(solve, to_fitting, n_basis, n_nonnegative)
     if coef.ndim == 1:
@@ -226,10 +225,17 @@ def _fit_named(solve, column_norms, to_fitting, keep, threshold, n_nonnegative, 
         raise ValueError(f"{name}: named terms take one target; got {terms.shape[1]}.")
     if threshold == 0:
         return _Part(keep, terms, tail, cond, rank, 1).solution(to_fitting, n_nonnegative)
-    padded = sparse.vstack([to_fitting, sparse.csc_array((n_nonnegative, n_basis))]).tocsc()
-    part = _stlsq(reduced, (terms, tail, cond, rank), column_norms(padded), threshold,
+    part = _stlsq(reduced, (terms, tail, cond, rank),
+                  _readable_norms(column_norms, to_fitting, n_nonnegative), threshold,
                   max_iter, name, kept=keep)
     return part.solution(to_fitting, n_nonnegative)
+
+
+def _readable_norms(column_norms, to_fitting, n_nonnegative):
+    """The design's column norms of the readable terms (the friction columns add none)."""
+    n_basis = to_fitting.shape[0]
+    padded = sparse.vstack([to_fitting, sparse.csc_array((n_nonnegative, n_basis))]).tocsc()
+    return column_norms(padded)
 
 
 class _ReducedSolve:

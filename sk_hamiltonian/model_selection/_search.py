@@ -103,8 +103,8 @@ class HamiltonianSearchCV(BaseEstimator):
        each set of terms is fitted to all the raw trajectories (output error,
        one noise model for all) and the lowest Bayesian information criterion
        decides (``judgement_``): the exact law against its Taylor series, on
-       no fold at all. Up to two degrees of freedom, a choice that keeps
-       even powers of a polynomial position alone (``cos q``'s Taylor series)
+       no fold at all. Up to two degrees of freedom, a choice that keeps a
+       softening ``q**4`` of a polynomial position alone (``-cos q``'s series)
        is weighed so against its terms with ``cos q`` in their place, fitted
        and scored as one more finalist (``terms``, stage ``"cosine"``).
     4. **Refine** (``refine="trajectories"``) the chosen model, refitted on
