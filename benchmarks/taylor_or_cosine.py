@@ -41,7 +41,7 @@ from sklearn.pipeline import make_pipeline
 from sk_hamiltonian import DerivativeTransformer, HamiltonianRegressor
 from sk_hamiltonian.inspection import format_hamiltonian, hamiltonian_terms
 from sk_hamiltonian.model_selection import HamiltonianSearchCV
-from sk_hamiltonian.model_selection._finalists import judge_supports
+from sk_hamiltonian.model_selection._judgement import judge_supports
 from sk_hamiltonian.model_selection._refine import refine_on_trajectories
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))

@@ -132,7 +132,7 @@ def test_a_refinement_that_explains_held_out_data_worse_is_rejected_with_its_rea
 
 def test_the_trajectories_judge_a_law_against_its_taylor_series():
     from sk_hamiltonian._trajectory_fit import difference_noise_model
-    from sk_hamiltonian.model_selection._finalists import judge_supports
+    from sk_hamiltonian.model_selection._judgement import judge_supports
 
     X = make_trajectories(single_pendulum(), 100, 40, dt=0.01, noise=0.02, random_state=0)
     Xt = DerivativeTransformer(dt=0.01, degree=5).fit_transform(X)

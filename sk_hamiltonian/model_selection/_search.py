@@ -1,12 +1,10 @@
 """HamiltonianSearchCV: model spaces, fit targets, de-noising, degree and sparsity, cross-validated.
 
-The estimator runs the stages of its own modules on one set of folds:
-:mod:`._prepare` (the data: spikes, duplicates, long records, the folds),
-:mod:`._screen` (the model spaces), :mod:`._degrees` (degrees and thresholds,
-one finalist per layout and fit target), :mod:`._finalists` (the choice) and
-:mod:`._refine` (the chosen coefficients fitted to the trajectories) and
-:mod:`._energy_levels` (whether the data reach more than one energy level);
-:mod:`._search_checks` checks its list parameters.
+The stages' modules, on one set of folds: :mod:`._prepare` (spikes,
+duplicates, long records, the folds), :mod:`._screen` (the model spaces),
+:mod:`._degrees` (one finalist per layout and fit target), :mod:`._finalists`
+(the choice, with :mod:`._judgement` and :mod:`._offers`), :mod:`._refine`
+(the trajectory fit), :mod:`._energy_levels`; :mod:`._search_checks`.
 """
 
 import time
@@ -103,10 +101,12 @@ class HamiltonianSearchCV(BaseEstimator):
        each set of terms is fitted to all the raw trajectories (output error,
        one noise model for all) and the lowest Bayesian information criterion
        decides (``judgement_``): the exact law against its Taylor series, on
-       no fold at all. Up to two degrees of freedom, a choice that keeps a
-       softening ``q**4`` of a polynomial position alone (``-cos q``'s series)
-       is weighed so against its terms with ``cos q`` in their place, fitted
-       and scored as one more finalist (``terms``, stage ``"cosine"``).
+       no fold at all. A larger set chosen so is pruned term by term while
+       the criterion improves (stage ``"pruned"``); up to two degrees of
+       freedom, a choice that keeps a softening even series of a polynomial
+       position alone (``-cos q``'s) is weighed so against its terms with
+       ``cos q`` in their place, with and without ``q**2`` (``terms``,
+       stage ``"cosine"``).
     4. **Refine** (``refine="trajectories"``) the chosen model, refitted on
        all the data: the coefficients of its kept terms are fitted to the
        raw trajectories themselves, each simulated from an initial state of
@@ -245,12 +245,12 @@ class HamiltonianSearchCV(BaseEstimator):
         other candidates),
         and ``split<k>_equation_error``, ``mean_equation_error``,
         ``std_equation_error``, ``n_terms`` (on all the data), ``stage``
-        (``"screen"``, ``"search"``, ``"finalist"``, or ``"cosine"`` for the
-        law offered in stage 3) and ``tied`` (the finalists the data cannot
-        tell from the best score).
+        (``"screen"``, ``"search"``, ``"finalist"``, or ``"pruned"`` and
+        ``"cosine"`` for the laws stage 3 builds) and ``tied`` (the
+        finalists the data cannot tell from the best score).
     spaces_ : list of dict
-        The model spaces screened (not the one of the law stage 3 may
-        offer, whose parameters are in ``cv_results_``).
+        The model spaces screened (not those of the laws stage 3 builds,
+        whose parameters are in ``cv_results_``).
     kept_spaces_ : list of dict
         The model spaces searched after the screen.
     n_splits_ : int
@@ -283,8 +283,9 @@ class HamiltonianSearchCV(BaseEstimator):
         finalists"``, or ``"cosine law"``: the choice against its terms with
         ``cos q`` in place of the Taylor series, with ``gain`` and
         ``gain_se``), ``terms`` of each, their ``rss`` (weighted residual
-        sums of squares; per segment ``segment_rss``), ``n_terms``, ``bic``
-        and ``best``. None when no two sets were weighed.
+        sums of squares; per segment ``segment_rss``), ``n_terms``, ``bic``,
+        ``best`` and ``pruned`` (the terms dropped from the tied finalists'
+        choice). None when no two sets were weighed.
     refit_time_ : float
         Seconds of the final fit on all the data, the refinement included
         (0 with ``refit=False``).
@@ -411,8 +412,7 @@ class HamiltonianSearchCV(BaseEstimator):
         denoise = check_denoise(self.denoise_degrees, min(T.shape[0] for T in trajectories))
         clean = prepared.report["clean"]
         if clean:
-            # Exact data: de-noising only adds bias, and only the fit targets
-            # of O(dt**4) reach the law's own precision.
+            # Exact data: de-noising only adds bias; O(dt**4) targets suffice.
             denoise = [v for v in denoise if v == "finite_difference"] or denoise[:1]
             fit_on = [v for v in fit_on if v in CLEAN_FIT_TARGETS] or fit_on
             self._say(f"clean data: layouts {denoise}, fit targets {fit_on}")
