@@ -1298,3 +1298,27 @@ def test_no_resample_reports_the_searchs_refinement_not_a_refit_against_itself(
     assert spread > 0
     told = "the held-out data tell the two apart" in out
     assert told == (abs(gain) > 2 * spread), out
+
+
+@pytest.mark.slow
+def test_the_report_says_what_the_trajectories_dropped_and_why_cos_q_was_chosen(tmp_path, capsys):
+    # One record of a pendulum at small angles (the search's own test,
+    # tests/test_named_terms.py): the chosen candidate is pruned, then its
+    # cosine law, with fewer terms, is chosen.
+    system = single_pendulum()
+    box = np.asarray(system.domain, dtype=float)
+    rng = np.random.default_rng(12)
+    x0 = []
+    while not x0:
+        x = rng.uniform(box[:, 0], box[:, 1], size=(256, 2))
+        x0.extend(x[system.hamiltonian(x) < 5.0])
+    X = system.solve(np.array(x0[:1]), 0.02 * np.arange(3001), max_step=0.002)
+    path = tmp_path / "record.npz"
+    np.savez(path, X=X * (1 + 0.02 * rng.standard_normal(X.shape)))
+    status, out, _ = run([str(path), "--dt", "0.02", "--no-resample", "--output",
+                          str(tmp_path / "out")], capsys)
+    assert status == 0
+    assert re.search(r"does better without (q\^6|p\^2\*q\^\d)(, (q\^6|p\^2\*q\^\d)){2} ", out)
+    assert "(with fewer terms, information criterion" in out
+    assert "the cosine law is chosen" in out
+    assert re.search(r"learned: H~ = -9\.[78]\d* \(", out)

@@ -72,10 +72,19 @@ def run_discovery(args, data):
     if search.preparation_.get("one_level"):
         print(f"note: {search.preparation_['one_level']['message']}")
     judgement = search.judgement_
-    if judgement is not None and judgement["kind"] == "cosine law" and judgement["best"] == 1:
+    if judgement is not None and judgement.get("pruned"):
+        print(f"note: fitted to the trajectories, the chosen candidate does better without "
+              f"{', '.join(judgement['pruned'])} (information criterion); those are dropped")
+    if judgement is not None and judgement["kind"] == "cosine law" and judgement["best"]:
+        best = judgement["best"]
+        if judgement["n_terms"][best] < judgement["n_terms"][0]:
+            why = (f"with fewer terms, information criterion {judgement['bic'][best]:.6g} "
+                   f"against {judgement['bic'][0]:.6g}")
+        else:
+            why = (f"weighted residual sum lower by {judgement['gain']:.3g}, standard error "
+                   f"{judgement['gain_se']:.2g}")
         print(f"note: the trajectories prefer cos q to the Taylor series the candidates kept "
-              f"(weighted residual sum lower by {judgement['gain']:.3g}, standard error "
-              f"{judgement['gain_se']:.2g}); the cosine law is chosen")
+              f"({why}); the cosine law is chosen")
     results = search.cv_results_
     n_states = len(data.names)
     labels = [_describe(p, data.names[n_states // 2:]) for p in results["params"]]

@@ -38,7 +38,7 @@ def decide(records, finalists, selection, spaces, layouts, folds, trajectories, 
     Returns
     -------
     choice : int
-        Index into ``finalists`` (extended by the offer).
+        Index into ``finalists`` (extended by the pruned and offered laws).
     judgement : dict or None
         The last verdict among sets of terms, its ``kind`` ``"tied
         finalists"`` (with ``pruned``, the names of the terms dropped) or

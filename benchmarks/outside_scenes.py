@@ -1,0 +1,185 @@
+"""The default search on scenes, record shapes and noise the robustness study does not hold.
+
+Each row: ``HamiltonianSearchCV(dt=dt).fit(X)`` with its defaults on records
+that start at uniform states of the scene's box below an energy, noise
+Gaussian (``add``: that fraction of each variable's root-mean-square;
+``mult``: each sample times ``1 + level z``); the law it prints, whether it
+keeps the scene's exact terms (``-`` where the law is in none of the search's
+spaces), stage 3's verdict, and the median relative state error at
+``T = 20`` from 50 fresh states of the same box and energies (``inf`` where
+a simulation fails). CPU seconds of the search, BLAS on one thread::
+
+    python benchmarks/outside_scenes.py                     # every row below
+    python benchmarks/outside_scenes.py --scenes softening --seeds 11 12
+
+The scenes (``p`` the momentum, ``q`` the position):
+
+* ``small_angles``: the paper's pendulum ``p^2/2 - 9.8 cos q`` below
+  ``H = 5`` (angles within 1.3 rad), ``dt = 0.02``: its Taylor series and
+  its law are nearly collinear;
+* ``softening``: ``p^2/2 + q^2/2 - q^4/8`` (a softening Duffing spring, whose
+  series looks like a pendulum's), below ``H = 0.4``;
+* ``cubic``: ``p^2/2 + q^2/2 - q^3/3`` below ``H = 0.13`` (the well's rim is
+  at 1/6);
+* ``quartic``: ``p^2/2 + q^4/4``;
+* ``mass``: ``(1 + q^2) p^2/2 + q^2/2``, a mass that depends on the position;
+* ``anisotropic``: ``(p1^2 + p2^2)/2 + q1^2/2 + q2^2 + 0.3 q1 q2``;
+* ``morse``: ``p^2/2 + (1 - exp(-q))^2`` below ``H = 0.5``, in none of the spaces;
+* ``exponential``: the paper's ``exp(-p^2 - 1.1 q^4)``, in none of the spaces.
+"""
+
+import argparse
+import os
+import time
+import warnings
+
+for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(_var, "1")
+
+import numpy as np  # noqa: E402
+from threadpoolctl import threadpool_limits  # noqa: E402
+
+from sk_hamiltonian.datasets import HamiltonianSystem, exponential, single_pendulum  # noqa: E402
+from sk_hamiltonian.inspection import format_hamiltonian, hamiltonian_terms  # noqa: E402
+from sk_hamiltonian.model_selection import HamiltonianSearchCV  # noqa: E402
+
+T_END = 20.0
+SHAPES = {"many": (200, 41), "few": (5, 801), "one": (1, 4001), "four": (4, 1001),
+          "one3": (1, 3001)}
+
+
+def one_degree(name, potential, force, box, law):
+    """``H = p^2/2 + V(q)``; ``force`` is ``V'``."""
+    def hamiltonian(X):
+        X = np.asarray(X, dtype=float)
+        return X[..., 0] ** 2 / 2 + potential(X[..., 1])
+
+    def gradient(X):
+        X = np.asarray(X, dtype=float)
+        return np.stack([X[..., 0], force(X[..., 1])], axis=-1)
+
+    return HamiltonianSystem(name, hamiltonian, gradient, domain=box,
+                             initial_state=[0.3, 0.5]), law
+
+
+def mass():
+    def hamiltonian(X):
+        p, q = np.asarray(X, dtype=float)[..., 0], np.asarray(X, dtype=float)[..., 1]
+        return (1 + q**2) * p**2 / 2 + q**2 / 2
+
+    def gradient(X):
+        p, q = np.asarray(X, dtype=float)[..., 0], np.asarray(X, dtype=float)[..., 1]
+        return np.stack([(1 + q**2) * p, q * p**2 + q], axis=-1)
+
+    return (HamiltonianSystem("mass", hamiltonian, gradient, domain=[[-1, 1], [-1, 1]],
+                              initial_state=[0.3, 0.5]), {"p^2", "q^2", "p^2*q^2"})
+
+
+def anisotropic():
+    def hamiltonian(X):
+        X = np.asarray(X, dtype=float)
+        return ((X[..., 0] ** 2 + X[..., 1] ** 2) / 2 + X[..., 2] ** 2 / 2 + X[..., 3] ** 2
+                + 0.3 * X[..., 2] * X[..., 3])
+
+    def gradient(X):
+        X = np.asarray(X, dtype=float)
+        return np.stack([X[..., 0], X[..., 1], X[..., 2] + 0.3 * X[..., 3],
+                         2 * X[..., 3] + 0.3 * X[..., 2]], axis=-1)
+
+    return (HamiltonianSystem("anisotropic", hamiltonian, gradient, domain=[[-1, 1]] * 4,
+                              initial_state=[0.3, 0.2, 0.5, 0.1]),
+            {"p1^2", "p2^2", "q1^2", "q2^2", "q1*q2"})
+
+
+# name: (system and its terms, energy bound, dt, cases as (shape, noise) pairs)
+SCENES = {
+    "small_angles": ((single_pendulum(), {"p^2", "cos(q)"}), 5.0, 0.02,
+                     [("four", "add2"), ("one3", "add2"), ("one3", "mult2")]),
+    "softening": (one_degree("softening", lambda q: q**2 / 2 - q**4 / 8, lambda q: q - q**3 / 2,
+                             [[-1.2, 1.2], [-1.2, 1.2]], {"p^2", "q^2", "q^4"}), 0.4, 0.05,
+                  [("many", "add2"), ("few", "add2"), ("one3", "mult2")]),
+    "cubic": (one_degree("cubic", lambda q: q**2 / 2 - q**3 / 3, lambda q: q - q**2,
+                         [[-0.6, 0.6], [-0.8, 0.9]], {"p^2", "q^2", "q^3"}), 0.13, 0.05,
+              [("many", "add2"), ("few", "add2"), ("one", "add2")]),
+    "quartic": (one_degree("quartic", lambda q: q**4 / 4, lambda q: q**3,
+                           [[-1.5, 1.5], [-1.5, 1.5]], {"p^2", "q^4"}), 1.5, 0.05,
+                [("many", "add2"), ("few", "add2"), ("one", "add2")]),
+    "mass": (mass(), 1.0, 0.05, [("many", "add2"), ("few", "add2"), ("one", "add2")]),
+    "anisotropic": (anisotropic(), 1.0, 0.05,
+                    [("many", "add2"), ("few", "add2"), ("one", "add2")]),
+    "morse": (one_degree("morse", lambda q: (1 - np.exp(-q)) ** 2,
+                         lambda q: 2 * (1 - np.exp(-q)) * np.exp(-q),
+                         [[-1, 1], [-0.5, 1.5]], None), 0.5, 0.05,
+              [("many", "add2"), ("few", "add2")]),
+    "exponential": ((exponential(), None), 10.0, 0.05, [("many", "add2"), ("few", "add2")]),
+}
+
+
+def states_below(system, energy, n, rng):
+    """``n`` uniform states of the system's box below ``energy``."""
+    box = np.asarray(system.domain, dtype=float)
+    found = []
+    while len(found) < n:
+        x = rng.uniform(box[:, 0], box[:, 1], size=(256, box.shape[0]))
+        found.extend(x[system.hamiltonian(x) < energy])
+    return np.array(found[:n])
+
+
+def records(system, energy, dt, shape, noise, seed):
+    n, length = SHAPES[shape]
+    rng = np.random.default_rng(seed)
+    X = system.solve(states_below(system, energy, n, rng), dt * np.arange(length),
+                     max_step=dt / 10)
+    level = float(noise[len("add"):] if noise.startswith("add") else noise[len("mult"):]) / 100
+    if noise.startswith("mult"):
+        return X * (1 + level * rng.standard_normal(X.shape))
+    scale = np.sqrt(np.mean(X.reshape(-1, X.shape[-1]) ** 2, axis=0))
+    return X + level * scale * rng.standard_normal(X.shape)
+
+
+def fresh_error(model, system, energy):
+    x0 = states_below(system, energy, 50, np.random.default_rng(99))
+    truth = system.solve(x0, [0.0, T_END], max_step=0.01)[:, -1]
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            Y = model.simulate(x0, [0.0, T_END], on_failure="nan")[:, -1]
+    except Exception:  # noqa: BLE001 -- a model that cannot be simulated fails
+        return np.inf
+    error = np.linalg.norm(Y - truth, axis=1) / np.linalg.norm(truth, axis=1)
+    return float(np.median(np.where(np.isfinite(error), error, np.inf)))
+
+
+def run(name, shape, noise, seed):
+    (system, law), energy, dt, _ = SCENES[name]
+    X = records(system, energy, dt, shape, noise, seed)
+    start = time.process_time()
+    with threadpool_limits(1), warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        search = HamiltonianSearchCV(dt=dt).fit(X)
+    seconds = time.process_time() - start
+    model = search.best_estimator_[-1]
+    kept = {term.text for term in hamiltonian_terms(model)}
+    exact = "-" if law is None else str(kept == law)
+    judgement = search.judgement_
+    verdict = "-" if judgement is None else (
+        f"{judgement['kind']}, best {judgement['best']}"
+        + (f", pruned {judgement['pruned']}" if judgement.get("pruned") else ""))
+    print(f"{name:12s} {shape:5s} {noise:6s} seed {seed:3d}  cpu {seconds:5.1f} s  "
+          f"exact {exact:5s}  error {fresh_error(model, system, energy):.3g}  "
+          f"[{verdict}]  {format_hamiltonian(model)}", flush=True)
+
+
+def main():
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--scenes", nargs="+", default=list(SCENES), choices=list(SCENES))
+    parser.add_argument("--seeds", nargs="+", type=int, default=[11, 12, 13, 14])
+    args = parser.parse_args()
+    for name in args.scenes:
+        for shape, noise in SCENES[name][3]:
+            for seed in args.seeds:
+                run(name, shape, noise, seed)
+
+
+if __name__ == "__main__":
+    main()
