@@ -16,6 +16,8 @@ more finalist each, and weighed against it by the trajectories
   was kept gets ``cos q`` in its place.
 """
 
+import warnings
+
 import numpy as np
 from sklearn.base import clone
 
@@ -102,8 +104,14 @@ def prune_terms(records, finalists, choice, judged, spaces, layouts, folds, traj
     dropped = []
     while candidates and len(current) > 1:
         trials = [current[[tuple(row) != drop for row in current]] for drop in candidates]
-        models = [model] + [clone(model).set_params(terms=rows.tolist(), threshold=0.0).fit(Xt)
-                            for rows in trials]
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                models = [model] + [
+                    clone(model).set_params(terms=rows.tolist(), threshold=0.0).fit(Xt)
+                    for rows in trials]
+        except (ValueError, np.linalg.LinAlgError):  # a set the space cannot fit: stop
+            break
         best = judge_supports(models, trajectories, dt, noise)["best"]
         if not best:  # None or 0: every drop costs more than its term
             break
