@@ -79,6 +79,15 @@ def test_two_spikes_side_by_side_are_both_found():
     assert sorted(map(tuple, np.argwhere(found))) == [(7, 17), (7, 18), (30, 8), (30, 10)]
 
 
+def test_three_spikes_within_five_samples_are_found():
+    # A sample between spikes (34, beside 32 and 33) stands out of its own
+    # cubic as much as a spike does; it once hid them, and 29 with them.
+    X = pendulum(noise=0.02)
+    X[7, [29, 32, 33]] = 1e6
+    found = np.array(find_spikes(times(X), list(X)))
+    assert sorted(map(tuple, np.argwhere(found))) == [(7, 29), (7, 32), (7, 33)]
+
+
 @pytest.mark.parametrize("kind", [dict(value=1e6), dict(value=50.0), dict(jump=1.0)])
 def test_spikes_are_found_exactly(kind):
     # A jump of 1 is about 25 times the noise (2 % of states of about 2).
