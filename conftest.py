@@ -39,3 +39,27 @@ def pytest_collection_modifyitems(config, items):
     for item in items:
         if "slow" in item.keywords:
             item.add_marker(skip)
+
+
+@pytest.fixture(scope="session")
+def small_angle_record():
+    """One pendulum record at small angles: 3 001 samples, dt = 0.02, 2 % relative noise.
+
+    Along one orbit ``p**2`` is a function of ``q``: the search's tied
+    finalists keep ``p^2, q^2`` and a six-term series with ``p^2 q^2`` and
+    ``p^2 q^4``, which stage 3 prunes (tests/test_named_terms.py,
+    tests/test_cli.py).
+    """
+    import numpy as np
+
+    from sk_hamiltonian.datasets import single_pendulum
+
+    system = single_pendulum()
+    box = np.asarray(system.domain, dtype=float)
+    rng = np.random.default_rng(12)
+    x0 = []
+    while not x0:
+        x = rng.uniform(box[:, 0], box[:, 1], size=(256, 2))
+        x0.extend(x[system.hamiltonian(x) < 5.0])
+    X = system.solve(np.array(x0[:1]), 0.02 * np.arange(3001), max_step=0.002)
+    return X * (1 + 0.02 * rng.standard_normal(X.shape))

@@ -1301,20 +1301,12 @@ def test_no_resample_reports_the_searchs_refinement_not_a_refit_against_itself(
 
 
 @pytest.mark.slow
-def test_the_report_says_what_the_trajectories_dropped_and_why_cos_q_was_chosen(tmp_path, capsys):
-    # One record of a pendulum at small angles (the search's own test,
-    # tests/test_named_terms.py): the chosen candidate is pruned, then its
-    # cosine law, with fewer terms, is chosen.
-    system = single_pendulum()
-    box = np.asarray(system.domain, dtype=float)
-    rng = np.random.default_rng(12)
-    x0 = []
-    while not x0:
-        x = rng.uniform(box[:, 0], box[:, 1], size=(256, 2))
-        x0.extend(x[system.hamiltonian(x) < 5.0])
-    X = system.solve(np.array(x0[:1]), 0.02 * np.arange(3001), max_step=0.002)
+def test_the_report_says_what_the_trajectories_dropped_and_why_cos_q_was_chosen(
+        tmp_path, capsys, small_angle_record):
+    # One record of a pendulum at small angles (conftest.py): the chosen
+    # candidate is pruned, then its cosine law, with fewer terms, is chosen.
     path = tmp_path / "record.npz"
-    np.savez(path, X=X * (1 + 0.02 * rng.standard_normal(X.shape)))
+    np.savez(path, X=small_angle_record)
     status, out, _ = run([str(path), "--dt", "0.02", "--no-resample", "--output",
                           str(tmp_path / "out")], capsys)
     assert status == 0

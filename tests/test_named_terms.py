@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from sk_hamiltonian import HamiltonianRegressor
-from sk_hamiltonian.datasets import anharmonic_spring, coupled_pendula, single_pendulum
+from sk_hamiltonian.datasets import anharmonic_spring, coupled_pendula
 from sk_hamiltonian.inspection import hamiltonian_terms
 from sk_hamiltonian.model_selection import HamiltonianSearchCV
 from sk_hamiltonian.model_selection._offers import cosine_terms
@@ -196,22 +196,14 @@ def test_the_offers_gain_is_summed_over_segments_with_its_standard_error():
 
 
 @pytest.mark.slow
-def test_a_larger_set_the_trajectories_chose_is_pruned_then_offered_its_cosine_law():
-    # One record of a pendulum at small angles (3 001 samples, 2 %
-    # multiplicative noise). The tied finalists keep p^2, q^2 and a six-term
-    # series with p^2 q^2 and p^2 q^4, which along one orbit are nearly
-    # collinear with powers of q; the trajectories prefer the six to the two
-    # (whose law misses q^4), and before pruning that choice was the answer,
-    # at an error of 1.16 at T = 20.
-    system = single_pendulum()
-    box = np.asarray(system.domain, dtype=float)
-    rng = np.random.default_rng(12)
-    x0 = []
-    while not x0:
-        x = rng.uniform(box[:, 0], box[:, 1], size=(256, 2))
-        x0.extend(x[system.hamiltonian(x) < 5.0])
-    X = system.solve(np.array(x0[:1]), 0.02 * np.arange(3001), max_step=0.002)
-    X = X * (1 + 0.02 * rng.standard_normal(X.shape))
+def test_a_larger_set_the_trajectories_chose_is_pruned_then_offered_its_cosine_law(
+        small_angle_record):
+    # One record of a pendulum at small angles (conftest.py). The tied
+    # finalists keep p^2, q^2 and a six-term series with p^2 q^2 and p^2 q^4,
+    # which along one orbit are nearly collinear with powers of q; the
+    # trajectories prefer the six to the two (whose law misses q^4), and
+    # before pruning that choice was the answer, at an error of 1.16 at T = 20.
+    X = small_angle_record
     search = searched(X, dt=0.02)
     judgement = search.judgement_
     assert sorted(judgement["pruned"]) == ["p^2*q^2", "p^2*q^4", "q^6"]
