@@ -35,8 +35,10 @@ The scenes (``p`` the momentum, ``q`` the position):
 
 import argparse
 import os
+import sys
 import time
 import warnings
+from pathlib import Path
 
 for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
@@ -50,7 +52,10 @@ from sk_hamiltonian.datasets import HamiltonianSystem, exponential, single_pendu
 from sk_hamiltonian.inspection import format_hamiltonian, hamiltonian_terms  # noqa: E402
 from sk_hamiltonian.model_selection import HamiltonianSearchCV  # noqa: E402
 
-T_END = 20.0
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+from robustness_study import noise_of  # noqa: E402
+from search_study import T_END, model_error  # noqa: E402
+
 SHAPES = {"many": (200, 41), "few": (5, 801), "one": (1, 4001), "four": (4, 1001),
           "one3": (1, 3001)}
 
@@ -137,24 +142,18 @@ def records(system, energy, dt, shape, noise, seed):
     rng = np.random.default_rng(seed)
     X = system.solve(states_below(system, energy, n, rng), dt * np.arange(length),
                      max_step=dt / 10)
-    level = float(noise[len("add"):] if noise.startswith("add") else noise[len("mult"):]) / 100
-    if noise.startswith("mult"):
+    kind, level = noise_of(noise)
+    if kind == "mult":
         return X * (1 + level * rng.standard_normal(X.shape))
     scale = np.sqrt(np.mean(X.reshape(-1, X.shape[-1]) ** 2, axis=0))
     return X + level * scale * rng.standard_normal(X.shape)
 
 
 def fresh_error(model, system, energy):
+    """The median relative state error at ``T_END`` from 50 fresh states below ``energy``."""
     x0 = states_below(system, energy, 50, np.random.default_rng(99))
     truth = system.solve(x0, [0.0, T_END], max_step=0.01)[:, -1]
-    try:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            Y = model.simulate(x0, [0.0, T_END], on_failure="nan")[:, -1]
-    except Exception:  # noqa: BLE001 -- a model that cannot be simulated fails
-        return np.inf
-    error = np.linalg.norm(Y - truth, axis=1) / np.linalg.norm(truth, axis=1)
-    return float(np.median(np.where(np.isfinite(error), error, np.inf)))
+    return model_error(model, x0, truth, angles=[])
 
 
 def by_hand(system, energy, dt, X):

@@ -108,4 +108,3 @@ def offered_gain(segment_rss):
         return np.nan, np.nan
     difference = segment_rss[0] - segment_rss[1]
     return float(difference.sum()), float(np.sqrt(difference.size) * np.std(difference, ddof=1))
-

@@ -21,7 +21,7 @@ import warnings
 import numpy as np
 from sklearn.base import clone
 
-from .._trajectory_fit import KeptTerms
+from .._trajectory_fit import KeptTerms, split_times
 from ..inspection import hamiltonian_terms
 from ._degrees import search_unit
 from ._judgement import judge_supports, offered_gain, support_key
@@ -94,7 +94,8 @@ def prune_terms(records, finalists, choice, judged, spaces, layouts, folds, traj
     model = chosen["fitted"]
     current = kept_powers(model)
     sets = [set(map(tuple, kept_powers(m))) for m in judged]
-    candidates = [row for row in map(tuple, current) if row not in set.intersection(*sets)]
+    common = set.intersection(*sets)
+    candidates = [row for row in map(tuple, current) if row not in common]
     # Only a choice that bought terms over a smaller set is pruned: the
     # smallest has no term the criterion took without a rival.
     if len(current) <= min(map(len, sets)) or not candidates or len(candidates) > MAX_PRUNED:
@@ -230,8 +231,7 @@ def offer_cosine_law(records, finalists, choice, spaces, layouts, folds, traject
         # Beyond, the spaces are mixed only where the data look like angles,
         # and a chain's quartic springs (FPU) would cost an offer each search.
         return choice, None
-    states = np.concatenate([np.asarray(T)[:, (1 if dt is None else 0):] for T in trajectories])
-    substitute = cosine_terms(chosen["fitted"], states)
+    substitute = cosine_terms(chosen["fitted"], np.concatenate(split_times(trajectories, dt)[1]))
     if substitute is None:
         return choice, None
     mixed, terms, squares = substitute
