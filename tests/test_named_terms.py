@@ -119,6 +119,31 @@ def test_the_softening_is_read_from_the_series_over_the_data_not_the_sign_of_q4(
     assert cosine_terms(model, X) is None
 
 
+def test_the_richer_finalist_is_the_smallest_untied_one_that_keeps_the_choices_terms():
+    from sk_hamiltonian.model_selection._finalists import richer_finalist
+
+    X, y = spring_states()
+    sets = {
+        "choice": [[2, 0], [0, 2]],
+        "tied superset": [[2, 0], [0, 2], [0, 4]],
+        "superset": [[2, 0], [0, 2], [0, 4], [0, 6]],
+        "larger superset": [[2, 0], [0, 2], [0, 4], [0, 6], [2, 2]],
+        "not a superset": [[2, 0], [0, 4]],
+        "failed superset": [[2, 0], [0, 2], [2, 2]],
+    }
+    records = [dict(fitted=HamiltonianRegressor(degree=6, terms=terms).fit(X, y),
+                    scores=np.full(5, np.nan if name.startswith("failed") else 0.9))
+               for name, terms in sets.items()]
+    tied = np.array([True, True, False, False, False, False])
+    finalists = list(range(len(records)))
+    assert list(sets)[richer_finalist(records, finalists, 0, tied)] == "superset"
+    # Tied ones are judged anyway; without an untied superset there is none.
+    tied[2] = True
+    assert list(sets)[richer_finalist(records, finalists, 0, tied)] == "larger superset"
+    tied[3] = True
+    assert richer_finalist(records, finalists, 0, tied) is None
+
+
 def searched(X, dt=0.05, **params):
     """The default search on ``X``, its warnings silenced."""
     with warnings.catch_warnings():
@@ -213,6 +238,24 @@ def test_a_larger_set_the_trajectories_chose_is_pruned_then_offered_its_cosine_l
     assert judgement["kind"] == "cosine law"
     assert judgement["terms"][0] == ["p^2", "q^2", "q^4"]
     assert judgement["bic"][2] == min(judgement["bic"])
+    model = search.best_estimator_[-1]
+    assert sorted(coefficients(model)) == ["cos(q)", "p^2"]
+    assert coefficients(model)["cos(q)"] == pytest.approx(-9.8, rel=0.01)
+
+
+@pytest.mark.slow
+def test_a_richer_finalist_the_folds_left_untied_is_judged_with_the_tied_ones(
+        small_angle_record):
+    # The same record with folds under which every tied finalist keeps
+    # p^2, q^2 (the harmonic law, missing q^4) and the six-term series scores
+    # just outside the tie: before the richer finalist was judged, these folds
+    # gave 0.5021 p^2 + 4.759 q^2 and the default folds the cosine law.
+    from sklearn.model_selection import KFold
+
+    search = searched(small_angle_record, dt=0.02, cv=KFold(5, shuffle=True, random_state=1))
+    judgement = search.judgement_
+    assert "q^4" in judgement["richer"] and {"p^2", "q^2"} < set(judgement["richer"])
+    assert "q^6" in judgement["pruned"]
     model = search.best_estimator_[-1]
     assert sorted(coefficients(model)) == ["cos(q)", "p^2"]
     assert coefficients(model)["cos(q)"] == pytest.approx(-9.8, rel=0.01)

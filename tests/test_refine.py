@@ -266,3 +266,34 @@ def test_a_refined_fit_on_steps_is_simulated_as_the_flow_it_now_describes():
     assert info["status"] == "refined"
     assert model._default_step("avf") < model.dt_
     assert error() < error(max_step=model.dt_) / 10
+
+
+def test_fits_weighed_at_the_same_states_minimise_the_same_cost():
+    # Under relative noise the weights depend on the states they are taken
+    # at: fits from two starts, each weighed at its own first simulation,
+    # minimise two costs; weighed at given states, one cost with one minimum.
+    model = FlowModel(
+        gradients=lambda X: np.stack([np.diag(x) for x in X]),
+        hessian=lambda X, theta: np.broadcast_to(np.diag(theta), (len(X), 2, 2)),
+        wrap_difference=lambda D: D,
+    )
+    t = np.linspace(0, 4, 81)
+    x0 = np.array([[1.0, 0.0], [0.0, 2.0], [0.5, 0.5]])
+    omega = np.sqrt(2.0 * 3.0)
+    c, s = np.cos(omega * t), np.sin(omega * t)
+    Y = np.stack([np.column_stack([p0 * c - np.sqrt(1.5) * q0 * s,
+                                   q0 * c + p0 * s / np.sqrt(1.5)]) for p0, q0 in x0])
+    Y = Y * (1 + 0.05 * np.random.default_rng(0).standard_normal(Y.shape))
+    groups = [(Y, [np.full(5, 0.01)] * 80)]
+    noise = np.array([[0.0, 0.05**2], [0.0, 0.05**2]])
+
+    def misfit(start, weight_states=None):
+        result = fit_trajectories(model, np.array(start), groups, n_reweights=0,
+                                  first_noise=noise, weight_states=weight_states)
+        return float(np.sum(result["misfit"][0])), result
+
+    apart = [misfit(start)[0] for start in ([1.7, 3.4], [2.4, 2.6])]
+    assert abs(apart[0] - apart[1]) > 1e-3 * apart[0]
+    _, reference = misfit([2.0, 3.0])
+    together = [misfit(start, reference["states"])[0] for start in ([1.7, 3.4], [2.4, 2.6])]
+    assert together[0] == pytest.approx(together[1], rel=1e-7)

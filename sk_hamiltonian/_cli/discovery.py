@@ -72,6 +72,10 @@ def run_discovery(args, data):
     if search.preparation_.get("one_level"):
         print(f"note: {search.preparation_['one_level']['message']}")
     judgement = search.judgement_
+    if judgement is not None and judgement.get("richer"):
+        print(f"note: fitted to the trajectories, a candidate the held-out scores ranked lower, "
+              f"with more terms ({', '.join(judgement['richer'])}), does better than their "
+              f"choice (information criterion); it is taken")
     if judgement is not None and judgement.get("pruned"):
         print(f"note: fitted to the trajectories, the chosen candidate does better without "
               f"{', '.join(judgement['pruned'])} (information criterion); those are dropped")

@@ -243,7 +243,7 @@ def _observed_scale(groups):
 
 
 def fit_trajectories(model, theta, groups, *, bound=None, max_iter=MAX_ITER,
-                     n_reweights=N_REWEIGHTS, first_noise=None):
+                     n_reweights=N_REWEIGHTS, first_noise=None, weight_states=None):
     """Output-error coefficients of ``model`` on observed trajectories.
 
     The first fit is weighted by ``first_noise`` (unweighted without it);
@@ -278,6 +278,11 @@ def fit_trajectories(model, theta, groups, *, bound=None, max_iter=MAX_ITER,
     first_noise : ndarray of shape (n_states, 2), default=None
         A noise model to weigh the first fit, at the states simulated from
         the start; None: unweighted.
+    weight_states : list of ndarray, default=None
+        Where ``first_noise`` is taken instead, one array per group of the
+        shape of its ``Y`` (say, another fit's ``states``): fits of several
+        models weighed at the same states minimise the same cost, and their
+        misfits can be compared. None: at the states simulated from the start.
 
     Returns
     -------
@@ -313,7 +318,8 @@ def fit_trajectories(model, theta, groups, *, bound=None, max_iter=MAX_ITER,
         # Weights at the simulated states, not at the observations: weights
         # from noisy observations favour the samples whose noise shrank them.
         noise, source = first_noise, "data"
-        _weigh(groups, [run[0] for run in runs], noise, scale)
+        _weigh(groups, [run[0] for run in runs] if weight_states is None else weight_states,
+               noise, scale)
     for round_ in range(n_reweights + 1):
         if round_:
             # The states do not depend on the weights: the last fit's serve.

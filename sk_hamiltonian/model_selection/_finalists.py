@@ -3,17 +3,18 @@
 The finalists (one per derivative layout and fit target) are compared by
 their rollout scores against the held-out observations
 (:func:`~._selection.pick_among`). Among those the data cannot tell from the
-best score, several may keep different terms; each distinct set is then
-fitted to the raw trajectories and weighed by an information criterion
-(:func:`~._judgement.judge_supports`). The choice is last weighed against
-laws built from it (:mod:`._offers`): its terms pruned, and ``cos q`` in
-place of a Taylor series.
+best score, several may keep different terms; each distinct set, with the
+smallest untied finalist that keeps the choice's terms and more
+(:func:`richer_finalist`), is then fitted to the raw trajectories and weighed
+by an information criterion (:func:`~._judgement.judge_supports`). The
+choice is last weighed against laws built from it (:mod:`._offers`): its
+terms pruned, and ``cos q`` in place of a Taylor series.
 """
 
 import numpy as np
 
 from ._judgement import judge_supports, support_key
-from ._offers import offer_cosine_law, prune_terms
+from ._offers import MAX_PRUNED, offer_cosine_law, prune_terms
 from ._selection import pick_among
 
 # At most this many distinct sets of terms are judged by their trajectory fits
@@ -30,8 +31,8 @@ def decide(records, finalists, selection, spaces, layouts, folds, trajectories, 
            **search):
     """Stage 3: :func:`choose`, then with ``"simplest"`` the laws of :mod:`._offers`.
 
-    Where the trajectories chose among tied finalists a set of terms larger
-    than another, :func:`~._offers.prune_terms` drops what they need not
+    Where the trajectories chose among the tied finalists (and a richer one)
+    a set of terms larger than another, :func:`~._offers.prune_terms` drops what they need not
     keep; then :func:`~._offers.offer_cosine_law`. Marks each finalist's
     record ``tied`` (the offered laws never are).
 
@@ -41,8 +42,10 @@ def decide(records, finalists, selection, spaces, layouts, folds, trajectories, 
         Index into ``finalists`` (extended by the pruned and offered laws).
     judgement : dict or None
         The last verdict among sets of terms, its ``kind`` ``"tied
-        finalists"`` (with ``pruned``, the names of the terms dropped) or
-        ``"cosine law"``; None when there was none.
+        finalists"`` or ``"cosine law"``, with ``pruned`` (the names of the
+        terms dropped) and ``richer`` (the terms of an untied finalist the
+        trajectories preferred to the tied ones, :func:`richer_finalist`, or
+        None); None when there was none.
 
     Raises
     ------
@@ -68,7 +71,8 @@ def decide(records, finalists, selection, spaces, layouts, folds, trajectories, 
         choice, cosine = offer_cosine_law(records, finalists, choice, spaces, layouts, folds,
                                           trajectories, dt, noise, **search)
         if cosine is not None:
-            judgement = {**cosine, "pruned": pruned}
+            richer = None if judgement is None else judgement.get("richer")
+            judgement = {**cosine, "pruned": pruned, "richer": richer}
     return choice, judgement
 
 
@@ -96,7 +100,7 @@ def choose(records, finalists, selection, trajectories, dt, noise):
         The finalists the rollout scores cannot tell from the best.
     judgement : dict or None
         :func:`~._judgement.judge_supports`' verdict, when the tied
-        finalists keep different terms.
+        finalists, with :func:`richer_finalist`, keep different terms.
     judged : list of HamiltonianRegressor
         The sets of terms weighed (empty without a verdict).
     """
@@ -114,6 +118,9 @@ def choose(records, finalists, selection, trajectories, dt, noise):
     for j in order:
         key = support_key(records[finalists[j]]["fitted"])
         representatives.setdefault(key, j)
+    richer = richer_finalist(records, finalists, choice, tied)
+    if richer is not None:
+        representatives.setdefault(support_key(records[finalists[richer]]["fitted"]), richer)
     if len(representatives) < 2:
         return choice, tied, None, []
     candidates = sorted(representatives.items(), key=lambda item: len(item[0]))[:MAX_JUDGED]
@@ -121,5 +128,34 @@ def choose(records, finalists, selection, trajectories, dt, noise):
     judgement = judge_supports(models, trajectories, dt, noise)
     if judgement["best"] is not None:
         choice = candidates[judgement["best"]][1]
-    judgement.update(terms=[sorted(key) for key, _ in candidates], kind="tied finalists")
+    # "richer": the terms of an untied finalist the trajectories preferred.
+    chose_richer = richer is not None and choice == richer
+    judgement.update(terms=[sorted(key) for key, _ in candidates], kind="tied finalists",
+                     richer=sorted(support_key(models[judgement["best"]])) if chose_richer
+                     else None)
     return choice, tied, judgement, models
+
+
+def richer_finalist(records, finalists, choice, tied):
+    """The untied finalist with the fewest terms that keeps every term of the choice and more.
+
+    The rollout scores cover a fraction of a second of held-out data; a term
+    whose effect builds up over a whole orbit (``q**4`` of a pendulum at small
+    angles, on one record) can leave its finalist untied behind a choice
+    without it, by a fold split's luck. Such a finalist is judged with the
+    tied ones, so that the trajectories decide whether the choice lacks
+    something; :func:`~._offers.prune_terms` then drops what it need not
+    keep. At most ``MAX_PRUNED`` terms more than the choice; None when there
+    is none.
+    """
+    kept = support_key(records[finalists[choice]]["fitted"])
+    found = None
+    for j, flag in enumerate(tied):
+        record = records[finalists[j]]
+        if flag or not np.all(np.isfinite(record["scores"])):
+            continue
+        key = support_key(record["fitted"])
+        if key > kept and len(key) - len(kept) <= MAX_PRUNED and (
+                found is None or len(key) < found[0]):
+            found = (len(key), j)
+    return None if found is None else found[1]

@@ -77,16 +77,17 @@ def judge_supports(models, trajectories, dt, noise):
     n_initial = sum(Y.shape[0] * Y.shape[2] for Y, _, _ in groups)
     rss = np.full(len(models), np.inf)
     per_segment = [None] * len(models)
+    reference = None
     for i, term in enumerate(terms):
         if term.reason is not None:
             continue
-        try:
-            with np.errstate(all="ignore"):
-                result = fit_trajectories(term.model, term.start, groups, n_reweights=0,
-                                          first_noise=noise)
-        except TrajectoryFitError:
-            continue
-        if np.all(np.isfinite(result["theta"])):
+        result = _weighted_fit(term, term.start, groups, noise, reference)
+        if result is not None and reference is None:
+            # Every set is weighed at the first fitted set's trajectories
+            # (refitted under them, from its own result).
+            reference = result["states"]
+            result = _weighted_fit(term, result["theta"], groups, noise, reference)
+        if result is not None:
             per_segment[i] = np.concatenate([np.ravel(m) for m in result["misfit"]])
             rss[i] = float(per_segment[i].sum())
     n_terms = np.array([term.n_terms for term in terms])
@@ -100,6 +101,17 @@ def judge_supports(models, trajectories, dt, noise):
     best = int(np.lexsort((n_terms, bic))[0])
     return dict(bic=bic, rss=rss, n_terms=n_terms, n_observations=n_obs, best=best,
                 segment_rss=per_segment)
+
+
+def _weighted_fit(term, start, groups, noise, weight_states):
+    """One fit of :func:`~sk_hamiltonian._trajectory_fit.fit_trajectories`; None where it failed."""
+    try:
+        with np.errstate(all="ignore"):
+            result = fit_trajectories(term.model, start, groups, n_reweights=0,
+                                      first_noise=noise, weight_states=weight_states)
+    except TrajectoryFitError:
+        return None
+    return result if np.all(np.isfinite(result["theta"])) else None
 
 
 def offered_gain(segment_rss):

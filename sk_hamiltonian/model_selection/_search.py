@@ -87,26 +87,25 @@ class HamiltonianSearchCV(BaseEstimator):
        richer model can take from the bias of the estimated derivatives).
     2. **Search** every layout and fit target in the kept spaces (beyond two
        degrees of freedom, the layouts passed over by the screen are left
-       out, unless all are), degree by
-       degree from the smallest (a degree no better than the best below it
-       ends the space's search), at every threshold; within each layout and
-       fit target, the candidate with the fewest terms among those the data
-       cannot reject against the lowest equation error is that pair's
-       *finalist*.
+       out, unless all are), degree by degree from the smallest (a degree no
+       better than the best below it ends the space's search), at every
+       threshold; within each layout and fit target, the candidate with the
+       fewest terms among those the data cannot reject against the lowest
+       equation error is that pair's *finalist*.
     3. **Choose** among the finalists by the regressors' default rollout
        score against the held-out raw observations (which never sees the
-       derivatives or smoothed states being compared), or by ``scoring``,
-       by ``selection``.
-       When the finalists the scores cannot tell apart keep different terms,
-       each set of terms is fitted to all the raw trajectories (output error,
-       one noise model for all) and the lowest Bayesian information criterion
-       decides (``judgement_``): the exact law against its Taylor series, on
-       no fold at all. A larger set chosen so is pruned term by term while
-       the criterion improves (stage ``"pruned"``); up to two degrees of
-       freedom, a choice that keeps a softening even series of a polynomial
-       position alone (``-cos q``'s) is weighed so against its terms with
-       ``cos q`` in their place, with and without ``q**2`` (``terms``,
-       stage ``"cosine"``).
+       derivatives or smoothed states being compared), or by ``scoring``, by
+       ``selection``. When the finalists the scores cannot tell apart (and the
+       smallest other finalist that keeps the choice's terms and more) keep
+       different terms, each set is fitted to all the raw trajectories (output
+       error, one noise model at the same states for all) and the lowest
+       Bayesian information criterion decides (``judgement_``): the exact law
+       against its Taylor series, on no fold at all. A larger set chosen so is
+       pruned term by term while the criterion improves (stage ``"pruned"``);
+       up to two degrees of freedom, a choice that keeps a softening even
+       series of a polynomial position alone (``-cos q``'s) is weighed so
+       against its terms with ``cos q`` in their place, with and without
+       ``q**2`` (``terms``, stage ``"cosine"``).
     4. **Refine** (``refine="trajectories"``) the chosen model, refitted on
        all the data: the coefficients of its kept terms are fitted to the
        raw trajectories themselves, each simulated from an initial state of
@@ -116,9 +115,10 @@ class HamiltonianSearchCV(BaseEstimator):
        result is first checked on data it was not fitted on: with every
        other fold from the second held out (two of five), the least-squares
        pick and its trajectory fit, both fitted on the other folds, are
-       compared on the held-out trajectories; the refinement is kept only where it explains
-       them as well (within 0.5 %) and its fit on all the data converges,
-       else the least-squares coefficients stay and ``refinement_`` says why.
+       compared on the held-out trajectories; the refinement is kept only
+       where it explains them as well (within 0.5 %) and its fit on all the
+       data converges, else the least-squares coefficients stay and
+       ``refinement_`` says why.
 
     Parameters
     ----------
@@ -284,11 +284,12 @@ class HamiltonianSearchCV(BaseEstimator):
         ``cos q`` in place of the Taylor series, with ``gain`` and
         ``gain_se``), ``terms`` of each, their ``rss`` (weighted residual
         sums of squares; per segment ``segment_rss``), ``n_terms``, ``bic``,
-        ``best`` and ``pruned`` (the terms dropped from the tied finalists'
-        choice). None when no two sets were weighed.
+        ``best``, ``pruned`` (the terms dropped from the choice) and ``richer``
+        (the terms of an untied finalist the trajectories preferred to the
+        rollout scores' choice, else None). None when no two sets were weighed.
     refit_time_ : float
-        Seconds of the final fit on all the data, the refinement included
-        (0 with ``refit=False``).
+        Seconds of the final fit on all the data, refinement included (0 with
+        ``refit=False``).
     search_time_ : float
         Seconds of the whole search, the refit included.
     n_features_in_ : int
@@ -390,9 +391,8 @@ class HamiltonianSearchCV(BaseEstimator):
         fit_on = check_fit_on(self.fit_on)
         scorer = check_scorer(self.scoring)
         spaces = None if self.spaces == "auto" else check_spaces(self.spaces)
-        # state_order="qp": the search runs on the states exchanged into (p, q)
-        # order, with the per-state parameters exchanged alike; what it reports
-        # and the chosen model are in the columns' order.
+        # state_order="qp": the search runs on the states exchanged into (p, q) order,
+        # the per-state parameters alike; its reports and model keep the columns' order.
         swapped = self.state_order == "qp" and n_states % 2 == 0
         domain = self.domain
         if swapped:
