@@ -12,6 +12,11 @@ a simulation fails). CPU seconds of the search, BLAS on one thread::
     python benchmarks/outside_scenes.py                     # every row below
     python benchmarks/outside_scenes.py --scenes softening --seeds 11 12
     python benchmarks/outside_scenes.py --scenes exponential --by-hand
+    python benchmarks/outside_scenes.py --scenes small_angles --splits 5
+
+With ``--splits N``, each case is also searched with ``cv=KFold(5,
+shuffle=True, random_state=r)`` for ``r = 1 .. N`` (rows marked ``split r``),
+and a last line per case says whether every split kept the same terms.
 
 With ``--by-hand``, the scenes whose law is in none of the spaces are also
 fitted as the paper does, by a polynomial of one degree (8, then 10) on
@@ -44,6 +49,7 @@ for _var in ("OMP_NUM_THREADS", "OPENBLAS_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_var, "1")
 
 import numpy as np  # noqa: E402
+from sklearn.model_selection import KFold  # noqa: E402
 from sklearn.pipeline import Pipeline  # noqa: E402
 from threadpoolctl import threadpool_limits  # noqa: E402
 
@@ -169,13 +175,15 @@ def by_hand(system, energy, dt, X):
     return ", ".join(errors)
 
 
-def run(name, shape, noise, seed, hand=False):
+def run(name, shape, noise, seed, hand=False, split=None):
+    """Search one case and print its row; returns the kept terms."""
     (system, law), energy, dt, _ = SCENES[name]
     X = records(system, energy, dt, shape, noise, seed)
+    cv = 5 if split is None else KFold(5, shuffle=True, random_state=split)
     start = time.process_time()
     with threadpool_limits(1), warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        search = HamiltonianSearchCV(dt=dt).fit(X)
+        search = HamiltonianSearchCV(dt=dt, cv=cv).fit(X)
     seconds = time.process_time() - start
     model = search.best_estimator_[-1]
     kept = {term.text for term in hamiltonian_terms(model)}
@@ -184,11 +192,13 @@ def run(name, shape, noise, seed, hand=False):
     verdict = "-" if judgement is None else (
         f"{judgement['kind']}, best {judgement['best']}"
         + (f", pruned {judgement['pruned']}" if judgement.get("pruned") else ""))
-    print(f"{name:12s} {shape:5s} {noise:6s} seed {seed:3d}  cpu {seconds:5.1f} s  "
+    folds = "" if split is None else f"split {split}  "
+    print(f"{name:12s} {shape:5s} {noise:6s} seed {seed:3d}  {folds}cpu {seconds:5.1f} s  "
           f"exact {exact:5s}  error {fresh_error(model, system, energy):.3g}  "
           f"[{verdict}]  {format_hamiltonian(model)}", flush=True)
     if hand and law is None:
         print(f"{'':12s} by hand: {by_hand(system, energy, dt, X)}", flush=True)
+    return kept
 
 
 def main():
@@ -197,11 +207,19 @@ def main():
     parser.add_argument("--seeds", nargs="+", type=int, default=[11, 12, 13, 14])
     parser.add_argument("--by-hand", action="store_true",
                         help="also polynomials of degree 8 and 10 where no space holds the law")
+    parser.add_argument("--splits", type=int, default=0,
+                        help="also search each case under this many shuffled 5-fold splits")
     args = parser.parse_args()
     for name in args.scenes:
         for shape, noise in SCENES[name][3]:
             for seed in args.seeds:
-                run(name, shape, noise, seed, hand=args.by_hand)
+                laws = [run(name, shape, noise, seed, hand=args.by_hand)]
+                laws += [run(name, shape, noise, seed, split=r)
+                         for r in range(1, args.splits + 1)]
+                if args.splits:
+                    same = all(kept == laws[0] for kept in laws)
+                    print(f"{name:12s} {shape:5s} {noise:6s} seed {seed:3d}  "
+                          f"the same terms under all {len(laws)} fold splits: {same}", flush=True)
 
 
 if __name__ == "__main__":

@@ -151,6 +151,22 @@ def test_few_long_records_are_cut_into_contiguous_blocked_folds():
         assert np.all(np.diff(test) == 1)
 
 
+def test_a_shuffled_splitter_of_long_records_is_followed_and_reported_as_such():
+    from sklearn.model_selection import KFold
+
+    system = single_pendulum()
+    record = system.solve(system.initial_state, DT * np.arange(4001))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")  # scikit-learn's "groups ... ignored" is not passed on
+        prepared = prepare([record], DT, KFold(5, shuffle=True, random_state=0), None)
+    held = np.concatenate(prepared.folds)
+    assert sorted(held) == list(range(20))
+    assert not all(np.all(np.diff(np.sort(test)) == 1) for test in prepared.folds)
+    assert "not contiguous stretches" in prepared.report["segments"]["rule"]
+    blocked = prepare([record], DT, 5, None)
+    assert "each fold holding out a contiguous stretch" in blocked.report["segments"]["rule"]
+
+
 def test_enough_trajectories_keep_the_folds_of_cv():
     X = pendulum(n=5 * MIN_PER_FOLD)
     prepared = prepare(list(X), DT, 5, None)

@@ -17,7 +17,9 @@ law without being physics, and for what the folds need:
    :data:`SEGMENTS_PER_FOLD` per fold, of at most :data:`MAX_SEGMENT_SAMPLES`
    and at least :data:`MIN_SEGMENT_SAMPLES` samples, and the folds hold out
    contiguous stretches of them (blocked cross-validation: no sample is in a
-   training and a test fold). Otherwise the folds are those of ``cv`` over
+   training and a test fold; a ``cv`` splitter object is given the stretches
+   as ``groups``, and one that ignores groups, a shuffled ``KFold``, splits
+   the segments as asked, which ``preparation_`` says). Otherwise the folds are those of ``cv`` over
    the user's trajectories, and the pieces of one trajectory share its fold.
 4. **Clean data.** The noise the data show by themselves (their sixth
    differences, :func:`~sk_hamiltonian._trajectory_fit.difference_noise_model`)
@@ -27,8 +29,9 @@ Everything left out is named, as in the user's ``X``, in an
 :class:`~sk_hamiltonian.OutlierWarning` and in the search's ``preparation_``.
 """
 
-import numpy as np
+import warnings
 
+import numpy as np
 from sklearn.model_selection import GroupKFold, check_cv
 
 from .._outliers import listed
@@ -254,12 +257,20 @@ def _segmented(pieces, origin, n_splits, cv, report):
     blocks = np.concatenate([np.full(run.size, g) for g, run in
                              enumerate(np.array_split(np.arange(len(segments)), n_splits))])
     splitter = GroupKFold(n_splits) if isinstance(cv, (int, np.integer)) else check_cv(cv)
-    folds = [test for _, test in splitter.split(np.zeros((len(segments), 1)), groups=blocks)]
+    with warnings.catch_warnings():
+        # A splitter without groups (KFold) splits the segments as the user
+        # asked; the report below says so, not scikit-learn's warning.
+        warnings.filterwarnings("ignore", message="The groups parameter is ignored")
+        folds = [test for _, test in splitter.split(np.zeros((len(segments), 1)),
+                                                    groups=blocks)]
+    blocked = all(np.array_equal(np.sort(test), np.arange(test.min(), test.max() + 1))
+                  for test in folds if test.size)
     report["segments"] = dict(
         n_records=int(n_records), length=int(length), n_segments=len(segments),
         rule=(f"{n_records} records cannot fill {n_splits} folds with {MIN_PER_FOLD} each: "
               f"cut into {len(segments)} contiguous segments of {length} samples "
-              f"(the last of a record up to {2 * length - 1}), each fold holding out a "
-              f"contiguous stretch of them"),
+              f"(the last of a record up to {2 * length - 1}), "
+              + ("each fold holding out a contiguous stretch of them" if blocked else
+                 "the folds of cv over the segments (not contiguous stretches)")),
     )
     return segments, np.array(where, dtype=np.intp), folds
