@@ -756,7 +756,7 @@ def test_cli_round_trip_fit_show_simulate(demo, tmp_path, capsys):
     assert f"p: [{low:.6g}, {high:.6g}] (interval)" in shown
     assert f"n_terms_ = {model[-1].n_terms_}" in shown
     assert "format 2, written by sk_hamiltonian 0.1.0" in shown
-    assert f"estimator: DerivativeTransformer(dt=0.01" in shown
+    assert "estimator: DerivativeTransformer(dt=0.01" in shown
 
     csv_path = tmp_path / "run.csv"
     status, simulated, _ = run(
@@ -1314,3 +1314,23 @@ def test_the_report_says_what_the_trajectories_dropped_and_why_cos_q_was_chosen(
     assert "(with fewer terms, information criterion" in out
     assert "the cosine law is chosen" in out
     assert re.search(r"learned: H~ = -9\.[78]\d* \(", out)
+
+
+def test_the_judgement_notes_name_what_stage_3_changed():
+    from sk_hamiltonian._cli.discovery import judgement_notes
+
+    assert judgement_notes(None) == []
+    tied = dict(kind="tied finalists", best=0, richer=None, pruned=[])
+    assert judgement_notes(tied) == []
+    richer = dict(tied, richer=["p^2", "q^2", "q^4", "p^2*q^2"], pruned=["p^2*q^2"])
+    first, second = judgement_notes(richer)
+    assert "ranked lower, with more terms (p^2, q^2, q^4, p^2*q^2)" in first
+    assert "does better without p^2*q^2 (information criterion)" in second
+    cosine = dict(kind="cosine law", best=2, richer=None, pruned=[], n_terms=[3, 3, 2],
+                  bic=[5505.66, 5505.7, 5497.42], gain=-3.4, gain_se=1.6)
+    assert judgement_notes(cosine) == [
+        "the trajectories prefer cos q to the Taylor series the candidates kept (with fewer "
+        "terms, information criterion 5497.42 against 5505.66); the cosine law is chosen"]
+    as_many = dict(cosine, best=1, gain=11.1, gain_se=5.0)
+    assert "weighted residual sum lower by 11.1, standard error 5" in judgement_notes(as_many)[0]
+    assert judgement_notes(dict(cosine, best=0)) == []

@@ -71,24 +71,8 @@ def run_discovery(args, data):
         raise UsageError(f"the search failed: {message}") from None
     if search.preparation_.get("one_level"):
         print(f"note: {search.preparation_['one_level']['message']}")
-    judgement = search.judgement_
-    if judgement is not None and judgement.get("richer"):
-        print(f"note: fitted to the trajectories, a candidate the held-out scores ranked lower, "
-              f"with more terms ({', '.join(judgement['richer'])}), does better than their "
-              f"choice (information criterion); it is taken")
-    if judgement is not None and judgement.get("pruned"):
-        print(f"note: fitted to the trajectories, the chosen candidate does better without "
-              f"{', '.join(judgement['pruned'])} (information criterion); those are dropped")
-    if judgement is not None and judgement["kind"] == "cosine law" and judgement["best"]:
-        best = judgement["best"]
-        if judgement["n_terms"][best] < judgement["n_terms"][0]:
-            why = (f"with fewer terms, information criterion {judgement['bic'][best]:.6g} "
-                   f"against {judgement['bic'][0]:.6g}")
-        else:
-            why = (f"weighted residual sum lower by {judgement['gain']:.3g}, standard error "
-                   f"{judgement['gain_se']:.2g}")
-        print(f"note: the trajectories prefer cos q to the Taylor series the candidates kept "
-              f"({why}); the cosine law is chosen")
+    for note in judgement_notes(search.judgement_):
+        print(f"note: {note}")
     results = search.cv_results_
     n_states = len(data.names)
     labels = [_describe(p, data.names[n_states // 2:]) for p in results["params"]]
@@ -143,3 +127,29 @@ def _describe(params, positions):
     if threshold:
         parts.append(f"threshold={threshold:g}")
     return ", ".join(parts)
+
+
+def judgement_notes(judgement):
+    """What stage 3's verdict (``judgement_``) changed, one sentence each (none if nothing)."""
+    if judgement is None:
+        return []
+    notes = []
+    if judgement.get("richer"):
+        notes.append(f"fitted to the trajectories, a candidate the held-out scores ranked lower, "
+                     f"with more terms ({', '.join(judgement['richer'])}), does better than "
+                     f"their choice (information criterion); it is taken")
+    if judgement.get("pruned"):
+        notes.append(f"fitted to the trajectories, the chosen candidate does better without "
+                     f"{', '.join(judgement['pruned'])} (information criterion); those are "
+                     f"dropped")
+    if judgement["kind"] == "cosine law" and judgement["best"]:
+        best = judgement["best"]
+        if judgement["n_terms"][best] < judgement["n_terms"][0]:
+            why = (f"with fewer terms, information criterion {judgement['bic'][best]:.6g} "
+                   f"against {judgement['bic'][0]:.6g}")
+        else:
+            why = (f"weighted residual sum lower by {judgement['gain']:.3g}, standard error "
+                   f"{judgement['gain_se']:.2g}")
+        notes.append(f"the trajectories prefer cos q to the Taylor series the candidates kept "
+                     f"({why}); the cosine law is chosen")
+    return notes
