@@ -32,9 +32,9 @@ def decide(records, finalists, selection, spaces, layouts, folds, trajectories, 
     """Stage 3: :func:`choose`, then with ``"simplest"`` the laws of :mod:`._offers`.
 
     Where the trajectories chose among the tied finalists (and a richer one)
-    a set of terms larger than another, :func:`~._offers.prune_terms` drops what they need not
-    keep; then :func:`~._offers.offer_cosine_law`. Marks each finalist's
-    record ``tied`` (the offered laws never are).
+    a set of terms larger than another, :func:`~._offers.prune_terms` drops
+    what they need not keep; then :func:`~._offers.offer_cosine_law`. Marks
+    each finalist's record ``tied`` (the offered laws never are).
 
     Returns
     -------

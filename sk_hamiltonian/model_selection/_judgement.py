@@ -15,6 +15,14 @@ terms, ``N`` the number of observations and ``c >= 1`` the residual variance
 of the best-fitting set in units of the noise model (so that a noise model
 that is too small does not make every term look needed). No fold enters it:
 the same data give the same verdict whatever the folds.
+
+The weights ``1 / sigma`` of a relative noise model depend on the states they
+are taken at. Taken at each fit's own first simulation, every set would
+minimise a cost of its own, and the verdict would follow the least-squares
+coefficients the fits start from: on one record of a pendulum at small
+angles, the same three terms started from two derivative layouts' fits
+differed by 28 in the criterion, more than three terms' price. So every set
+is weighed at the same states, the first set's fitted trajectories.
 """
 
 import numpy as np
