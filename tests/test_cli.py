@@ -1320,13 +1320,13 @@ def test_the_judgement_notes_name_what_stage_3_changed():
     from sk_hamiltonian._cli.discovery import judgement_notes
 
     assert judgement_notes(None) == []
-    tied = dict(kind="tied finalists", best=0, richer=None, pruned=[])
+    tied = dict(kind="tied finalists", best=0, untied=None, pruned=[])
     assert judgement_notes(tied) == []
-    richer = dict(tied, richer=["p^2", "q^2", "q^4", "p^2*q^2"], pruned=["p^2*q^2"])
-    first, second = judgement_notes(richer)
-    assert "ranked lower, with more terms (p^2, q^2, q^4, p^2*q^2)" in first
+    untied = dict(tied, untied=["p^2", "q^2", "q^4", "p^2*q^2"], pruned=["p^2*q^2"])
+    first, second = judgement_notes(untied)
+    assert "ranked lower (p^2, q^2, q^4, p^2*q^2) does better than their choice" in first
     assert "does better without p^2*q^2 (information criterion)" in second
-    cosine = dict(kind="cosine law", best=2, richer=None, pruned=[], n_terms=[3, 3, 2],
+    cosine = dict(kind="cosine law", best=2, untied=None, pruned=[], n_terms=[3, 3, 2],
                   bic=[5505.66, 5505.7, 5497.42], gain=-3.4, gain_se=1.6)
     assert judgement_notes(cosine) == [
         "the trajectories prefer cos q to the Taylor series the candidates kept (with fewer "

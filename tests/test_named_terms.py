@@ -119,29 +119,38 @@ def test_the_softening_is_read_from_the_series_over_the_data_not_the_sign_of_q4(
     assert cosine_terms(model, X) is None
 
 
-def test_the_richer_finalist_is_the_smallest_untied_one_that_keeps_the_choices_terms():
-    from sk_hamiltonian.model_selection._finalists import richer_finalist
+def test_the_rivals_are_the_smallest_richer_finalist_and_each_other_spaces_best():
+    from sk_hamiltonian.model_selection._finalists import rival_finalists
 
     X, y = spring_states()
+    # name: (terms, space, mean score)
     sets = {
-        "choice": [[2, 0], [0, 2]],
-        "tied superset": [[2, 0], [0, 2], [0, 4]],
-        "superset": [[2, 0], [0, 2], [0, 4], [0, 6]],
-        "larger superset": [[2, 0], [0, 2], [0, 4], [0, 6], [2, 2]],
-        "not a superset": [[2, 0], [0, 4]],
-        "failed superset": [[2, 0], [0, 2], [2, 2]],
+        "choice": ([[2, 0], [0, 2]], 0, 1.0),
+        "tied superset": ([[2, 0], [0, 2], [0, 4]], 0, 0.99),
+        "superset": ([[2, 0], [0, 2], [0, 4], [0, 6]], 0, 0.9),
+        "larger superset": ([[2, 0], [0, 2], [0, 4], [0, 6], [2, 2]], 0, 0.95),
+        "not a superset": ([[2, 0], [0, 4]], 0, 0.97),
+        "failed superset": ([[2, 0], [0, 2], [2, 2]], 0, np.nan),
+        "other space": ([[2, 0], [0, 4]], 1, 0.8),
+        "other space, best": ([[2, 0], [0, 3]], 1, 0.85),
     }
-    records = [dict(fitted=HamiltonianRegressor(degree=6, terms=terms).fit(X, y),
-                    scores=np.full(5, np.nan if name.startswith("failed") else 0.9))
-               for name, terms in sets.items()]
-    tied = np.array([True, True, False, False, False, False])
+    records = [dict(fitted=HamiltonianRegressor(degree=6, terms=terms).fit(X, y), space=space,
+                    scores=np.full(5, score))
+               for terms, space, score in sets.values()]
+    tied = np.array([True, True] + [False] * 6)
     finalists = list(range(len(records)))
-    assert list(sets)[richer_finalist(records, finalists, 0, tied)] == "superset"
-    # Tied ones are judged anyway; without an untied superset there is none.
+    names = list(sets)
+
+    def rivals():
+        return [names[j] for j in rival_finalists(records, finalists, 0, tied)]
+
+    assert rivals() == ["superset", "other space, best"]
+    # A tied finalist is judged anyway, and a space with one in the tie has
+    # no rival of its own.
     tied[2] = True
-    assert list(sets)[richer_finalist(records, finalists, 0, tied)] == "larger superset"
-    tied[3] = True
-    assert richer_finalist(records, finalists, 0, tied) is None
+    assert rivals() == ["larger superset", "other space, best"]
+    tied[3] = tied[7] = True
+    assert rivals() == []
 
 
 def searched(X, dt=0.05, **params):
@@ -244,17 +253,17 @@ def test_a_larger_set_the_trajectories_chose_is_pruned_then_offered_its_cosine_l
 
 
 @pytest.mark.slow
-def test_a_richer_finalist_the_folds_left_untied_is_judged_with_the_tied_ones(
+def test_a_richer_rival_the_folds_left_untied_is_judged_with_the_tied_ones(
         small_angle_record):
     # The same record with folds under which every tied finalist keeps
     # p^2, q^2 (the harmonic law, missing q^4) and the six-term series scores
-    # just outside the tie: before the richer finalist was judged, these folds
+    # just outside the tie: before the richer rival was judged, these folds
     # gave 0.5021 p^2 + 4.759 q^2 and the default folds the cosine law.
     from sklearn.model_selection import KFold
 
     search = searched(small_angle_record, dt=0.02, cv=KFold(5, shuffle=True, random_state=1))
     judgement = search.judgement_
-    assert "q^4" in judgement["richer"] and {"p^2", "q^2"} < set(judgement["richer"])
+    assert "q^4" in judgement["untied"] and {"p^2", "q^2"} < set(judgement["untied"])
     assert "q^6" in judgement["pruned"]
     model = search.best_estimator_[-1]
     assert sorted(coefficients(model)) == ["cos(q)", "p^2"]

@@ -18,8 +18,9 @@ then dropped one at a time while the criterion improves
 (``judgement_["pruned"]``), down to ``p^2, q^2, q^4``, whose softening
 ``q**4`` is offered ``cos q`` in its place. The search is run twice, with its
 default folds and with shuffled ones: under the shuffled folds the six-term
-finalist scores just outside the tie, and is judged as the *richer* finalist
-(``judgement_["richer"]``). Both give the cosine law. Then the three laws of
+finalist scores just outside the tie, and is judged with the tied ones as
+their *richer* rival, then preferred (``judgement_["untied"]``). Both give the
+cosine law. Then the three laws of
 the path, each fitted by least squares on named terms
 (``HamiltonianRegressor(terms=...)``), are simulated from fresh states.
 
@@ -87,7 +88,7 @@ searches = {
 for name, search in searches.items():
     judgement = search.judgement_
     print(f"{name}: {format_hamiltonian(search.best_estimator_[-1])}")
-    print(f"  richer finalist judged and taken: {judgement['richer']}")
+    print(f"  untied finalist judged and taken: {judgement['untied']}")
     print(f"  pruned: {judgement['pruned']}")
     print(f"  last verdict ({judgement['kind']}): criterion {judgement['bic'].round(2)} "
           f"for {judgement['terms']}")
@@ -142,7 +143,7 @@ fig.savefig(FIGURES / "pruned_terms.png", dpi=120)
 
 record = {
     name: {"terms": sorted(term.text for term in hamiltonian_terms(search.best_estimator_[-1])),
-           "richer": search.judgement_["richer"], "pruned": search.judgement_["pruned"],
+           "untied": search.judgement_["untied"], "pruned": search.judgement_["pruned"],
            "kind": search.judgement_["kind"]}
     for name, search in searches.items()
 }

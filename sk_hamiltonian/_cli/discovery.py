@@ -134,10 +134,10 @@ def judgement_notes(judgement):
     if judgement is None:
         return []
     notes = []
-    if judgement.get("richer"):
-        notes.append(f"fitted to the trajectories, a candidate the held-out scores ranked lower, "
-                     f"with more terms ({', '.join(judgement['richer'])}), does better than "
-                     f"their choice (information criterion); it is taken")
+    if judgement.get("untied"):
+        notes.append(f"fitted to the trajectories, a candidate the held-out scores ranked lower "
+                     f"({', '.join(judgement['untied'])}) does better than their choice "
+                     f"(information criterion); it is taken")
     if judgement.get("pruned"):
         notes.append(f"fitted to the trajectories, the chosen candidate does better without "
                      f"{', '.join(judgement['pruned'])} (information criterion); those are "

@@ -3,10 +3,9 @@
 The finalists (one per derivative layout and fit target) are compared by
 their rollout scores against the held-out observations
 (:func:`~._selection.pick_among`). Among those the data cannot tell from the
-best score, several may keep different terms; each distinct set, with the
-smallest untied finalist that keeps the choice's terms and more
-(:func:`richer_finalist`), is then fitted to the raw trajectories and weighed
-by an information criterion (:func:`~._judgement.judge_supports`). The
+best score, several may keep different terms; each distinct set, with
+rivals from outside the tie (:func:`rival_finalists`), is then fitted to the
+raw trajectories and weighed by an information criterion (:func:`~._judgement.judge_supports`). The
 choice is last weighed against laws built from it (:mod:`._offers`): its
 terms pruned, and ``cos q`` in place of a Taylor series.
 """
@@ -31,7 +30,7 @@ def decide(records, finalists, selection, spaces, layouts, folds, trajectories, 
            **search):
     """Stage 3: :func:`choose`, then with ``"simplest"`` the laws of :mod:`._offers`.
 
-    Where the trajectories chose among the tied finalists (and a richer one)
+    Where the trajectories chose among the tied finalists (and their rivals)
     a set of terms larger than another, :func:`~._offers.prune_terms` drops
     what they need not keep; then :func:`~._offers.offer_cosine_law`. Marks
     each finalist's record ``tied`` (the offered laws never are).
@@ -43,8 +42,8 @@ def decide(records, finalists, selection, spaces, layouts, folds, trajectories, 
     judgement : dict or None
         The last verdict among sets of terms, its ``kind`` ``"tied
         finalists"`` or ``"cosine law"``, with ``pruned`` (the names of the
-        terms dropped) and ``richer`` (the terms of an untied finalist the
-        trajectories preferred to the tied ones, :func:`richer_finalist`, or
+        terms dropped) and ``untied`` (the terms of an untied finalist the
+        trajectories preferred to the tied ones, :func:`rival_finalists`, or
         None); None when there was none.
 
     Raises
@@ -71,8 +70,8 @@ def decide(records, finalists, selection, spaces, layouts, folds, trajectories, 
         choice, cosine = offer_cosine_law(records, finalists, choice, spaces, layouts, folds,
                                           trajectories, dt, noise, **search)
         if cosine is not None:
-            richer = None if judgement is None else judgement.get("richer")
-            judgement = {**cosine, "pruned": pruned, "richer": richer}
+            untied = None if judgement is None else judgement.get("untied")
+            judgement = {**cosine, "pruned": pruned, "untied": untied}
     return choice, judgement
 
 
@@ -100,7 +99,7 @@ def choose(records, finalists, selection, trajectories, dt, noise):
         The finalists the rollout scores cannot tell from the best.
     judgement : dict or None
         :func:`~._judgement.judge_supports`' verdict, when the tied
-        finalists, with :func:`richer_finalist`, keep different terms.
+        finalists, with :func:`rival_finalists`, keep different terms.
     judged : list of HamiltonianRegressor
         The sets of terms weighed (empty without a verdict).
     """
@@ -118,9 +117,9 @@ def choose(records, finalists, selection, trajectories, dt, noise):
     for j in order:
         key = support_key(records[finalists[j]]["fitted"])
         representatives.setdefault(key, j)
-    richer = richer_finalist(records, finalists, choice, tied)
-    if richer is not None:
-        representatives.setdefault(support_key(records[finalists[richer]]["fitted"]), richer)
+    rivals = rival_finalists(records, finalists, choice, tied)
+    for j in rivals:
+        representatives.setdefault(support_key(records[finalists[j]]["fitted"]), j)
     if len(representatives) < 2:
         return choice, tied, None, []
     candidates = sorted(representatives.items(), key=lambda item: len(item[0]))[:MAX_JUDGED]
@@ -128,34 +127,45 @@ def choose(records, finalists, selection, trajectories, dt, noise):
     judgement = judge_supports(models, trajectories, dt, noise)
     if judgement["best"] is not None:
         choice = candidates[judgement["best"]][1]
-    # "richer": the terms of an untied finalist the trajectories preferred.
-    chose_richer = richer is not None and choice == richer
+    # "untied": the terms of an untied finalist the trajectories preferred.
     judgement.update(terms=[sorted(key) for key, _ in candidates], kind="tied finalists",
-                     richer=sorted(support_key(models[judgement["best"]])) if chose_richer
-                     else None)
+                     untied=sorted(support_key(models[judgement["best"]]))
+                     if choice in rivals else None)
     return choice, tied, judgement, models
 
 
-def richer_finalist(records, finalists, choice, tied):
-    """The untied finalist with the fewest terms that keeps every term of the choice and more.
+def rival_finalists(records, finalists, choice, tied):
+    """Untied finalists judged with the tied ones: a richer set, and other spaces' best.
 
-    The rollout scores cover a fraction of a second of held-out data; a term
-    whose effect builds up over a whole orbit (``q**4`` of a pendulum at small
-    angles, on one record) can leave its finalist untied behind a choice
-    without it, by a fold split's luck. Such a finalist is judged with the
-    tied ones, so that the trajectories decide whether the choice lacks
-    something; :func:`~._offers.prune_terms` then drops what it need not
-    keep. At most ``MAX_PRUNED`` terms more than the choice; None when there
-    is none.
+    The rollout scores cover a fraction of a second of held-out data, and
+    their tie is one paired standard error: a fold split's luck can leave
+    out of it a finalist that differs where the trajectories would tell.
+
+    * The *richer* finalist, the untied one with the fewest terms that keeps
+      every term of the choice and at most ``MAX_PRUNED`` more: a term whose
+      effect builds up over a whole orbit (``q**4`` of a pendulum at small
+      angles, on one record) can leave it behind a choice without it; then
+      :func:`~._offers.prune_terms` drops what it need not keep.
+    * For each model space no tied finalist is in, its best-scoring
+      finalist: on one record of a softening spring, ``p^2, cos 2q``
+      (periodic) was alone in the tie under one fold split, with the
+      spring's exact polynomial law one standard error behind.
+
+    Returns
+    -------
+    rivals : list of int
+        Indices into ``finalists`` (finalists with a failed fold left out).
     """
+    scored = [j for j, flag in enumerate(tied)
+              if not flag and np.all(np.isfinite(records[finalists[j]]["scores"]))]
     kept = support_key(records[finalists[choice]]["fitted"])
-    found = None
-    for j, flag in enumerate(tied):
-        record = records[finalists[j]]
-        if flag or not np.all(np.isfinite(record["scores"])):
-            continue
-        key = support_key(record["fitted"])
-        if key > kept and len(key) - len(kept) <= MAX_PRUNED and (
-                found is None or len(key) < found[0]):
-            found = (len(key), j)
-    return None if found is None else found[1]
+    keys = {j: support_key(records[finalists[j]]["fitted"]) for j in scored}
+    richer = [j for j in scored if kept < keys[j] and len(keys[j]) - len(kept) <= MAX_PRUNED]
+    rivals = [min(richer, key=lambda j: len(keys[j]))] if richer else []
+    tied_spaces = {records[finalists[j]]["space"] for j in np.flatnonzero(tied)}
+    best = {}
+    for j in scored:
+        space, score = records[finalists[j]]["space"], np.mean(records[finalists[j]]["scores"])
+        if space not in tied_spaces and (space not in best or score > best[space][0]):
+            best[space] = (score, j)
+    return rivals + [j for _, j in best.values() if j not in rivals]

@@ -95,17 +95,17 @@ class HamiltonianSearchCV(BaseEstimator):
     3. **Choose** among the finalists by the regressors' default rollout
        score against the held-out raw observations (which never sees the
        derivatives or smoothed states being compared), or by ``scoring``, by
-       ``selection``. When the finalists the scores cannot tell apart (and the
-       smallest other finalist that keeps the choice's terms and more) keep
-       different terms, each set is fitted to all the raw trajectories (output
-       error, one noise model at the same states for all) and the lowest
-       Bayesian information criterion decides (``judgement_``): the exact law
-       against its Taylor series, on no fold at all. A larger set chosen so is
-       pruned term by term while the criterion improves (stage ``"pruned"``);
-       up to two degrees of freedom, a choice that keeps a softening even
-       series of a polynomial position alone (``-cos q``'s) is weighed so
-       against its terms with ``cos q`` in their place, with and without
-       ``q**2`` (``terms``, stage ``"cosine"``).
+       ``selection``. When the finalists the scores cannot tell apart (and
+       rivals: the smallest finalist with the choice's terms and more, each
+       other space's best) keep different terms, each set is fitted to all the
+       raw trajectories (output error, one noise model at the same states for
+       all) and the lowest Bayesian information criterion decides
+       (``judgement_``): the exact law against its Taylor series, on no fold at
+       all. A larger set chosen so is pruned term by term while the criterion
+       improves (stage ``"pruned"``); up to two degrees of freedom, a choice
+       that keeps a softening even series of a polynomial position alone
+       (``-cos q``'s) is weighed so against its terms with ``cos q`` in their
+       place, with and without ``q**2`` (``terms``, stage ``"cosine"``).
     4. **Refine** (``refine="trajectories"``) the chosen model, refitted on
        all the data: the coefficients of its kept terms are fitted to the
        raw trajectories themselves, each simulated from an initial state of
@@ -284,7 +284,7 @@ class HamiltonianSearchCV(BaseEstimator):
         ``cos q`` in place of the Taylor series, with ``gain`` and
         ``gain_se``), ``terms`` of each, their ``rss`` (weighted residual
         sums of squares; per segment ``segment_rss``), ``n_terms``, ``bic``,
-        ``best``, ``pruned`` (the terms dropped from the choice) and ``richer``
+        ``best``, ``pruned`` (the terms dropped from the choice) and ``untied``
         (the terms of an untied finalist the trajectories preferred to the
         rollout scores' choice, else None). None when no two sets were weighed.
     refit_time_ : float
