@@ -120,7 +120,7 @@ def test_the_softening_is_read_from_the_series_over_the_data_not_the_sign_of_q4(
 
 
 def test_the_rivals_are_the_smallest_richer_finalist_and_each_other_spaces_best():
-    from sk_hamiltonian.model_selection._finalists import rival_finalists
+    from sk_hamiltonian.model_selection._finalists import other_spaces, richer_finalist
 
     X, y = spring_states()
     # name: (terms, space, mean score)
@@ -133,24 +133,27 @@ def test_the_rivals_are_the_smallest_richer_finalist_and_each_other_spaces_best(
         "failed superset": ([[2, 0], [0, 2], [2, 2]], 0, np.nan),
         "other space": ([[2, 0], [0, 4]], 1, 0.8),
         "other space, best": ([[2, 0], [0, 3]], 1, 0.85),
+        "third space": ([[2, 0], [0, 3], [0, 4]], 2, 0.7),
     }
     records = [dict(fitted=HamiltonianRegressor(degree=6, terms=terms).fit(X, y), space=space,
                     scores=np.full(5, score))
                for terms, space, score in sets.values()]
-    tied = np.array([True, True] + [False] * 6)
+    tied = np.array([True, True] + [False] * 7)
     finalists = list(range(len(records)))
     names = list(sets)
 
     def rivals():
-        return [names[j] for j in rival_finalists(records, finalists, 0, tied)]
+        richer = richer_finalist(records, finalists, 0, tied)
+        return (None if richer is None else names[richer],
+                [names[j] for j in other_spaces(records, finalists, 0, tied)])
 
-    assert rivals() == ["superset", "other space, best"]
+    assert rivals() == ("superset", ["other space, best", "third space"])
     # A tied finalist is judged anyway, and a space with one in the tie has
     # no rival of its own.
     tied[2] = True
-    assert rivals() == ["larger superset", "other space, best"]
+    assert rivals() == ("larger superset", ["other space, best", "third space"])
     tied[3] = tied[7] = True
-    assert rivals() == []
+    assert rivals() == (None, ["third space"])
 
 
 def searched(X, dt=0.05, **params):

@@ -3,11 +3,13 @@
 The finalists (one per derivative layout and fit target) are compared by
 their rollout scores against the held-out observations
 (:func:`~._selection.pick_among`). Among those the data cannot tell from the
-best score, several may keep different terms; each distinct set, with
-rivals from outside the tie (:func:`rival_finalists`), is then fitted to the
-raw trajectories and weighed by an information criterion (:func:`~._judgement.judge_supports`). The
-choice is last weighed against laws built from it (:mod:`._offers`): its
-terms pruned, and ``cos q`` in place of a Taylor series.
+best score, several may keep different terms; each distinct set, with the
+smallest richer finalist outside the tie (:func:`richer_finalist`), is then
+fitted to the raw trajectories and weighed by an information criterion
+(:func:`~._judgement.judge_supports`). The choice is then weighed against laws
+built from it (:mod:`._offers`): its terms pruned, and ``cos q`` in place of a
+Taylor series; last, against the best finalist of each other model space
+(:func:`other_spaces`).
 """
 
 import numpy as np
@@ -30,21 +32,23 @@ def decide(records, finalists, selection, spaces, layouts, folds, trajectories, 
            **search):
     """Stage 3: :func:`choose`, then with ``"simplest"`` the laws of :mod:`._offers`.
 
-    Where the trajectories chose among the tied finalists (and their rivals)
-    a set of terms larger than another, :func:`~._offers.prune_terms` drops
-    what they need not keep; then :func:`~._offers.offer_cosine_law`. Marks
-    each finalist's record ``tied`` (the offered laws never are).
+    Where the trajectories chose among the tied finalists (and the richer
+    one) a set of terms larger than another, :func:`~._offers.prune_terms`
+    drops what they need not keep; then :func:`~._offers.offer_cosine_law`;
+    then :func:`other_spaces`' finalists, and the offer again for one the
+    trajectories prefer. Marks each finalist's record ``tied`` (the offered
+    laws never are).
 
     Returns
     -------
     choice : int
         Index into ``finalists`` (extended by the pruned and offered laws).
     judgement : dict or None
-        The last verdict among sets of terms, its ``kind`` ``"tied
-        finalists"`` or ``"cosine law"``, with ``pruned`` (the names of the
-        terms dropped) and ``untied`` (the terms of an untied finalist the
-        trajectories preferred to the tied ones, :func:`rival_finalists`, or
-        None); None when there was none.
+        The verdict among sets of terms that decided, its ``kind`` ``"tied
+        finalists"``, ``"cosine law"`` or ``"other spaces"``, with ``pruned``
+        (the names of the terms dropped) and ``untied`` (the terms of an
+        untied finalist the trajectories preferred, :func:`richer_finalist`
+        or :func:`other_spaces`, or None); None when there was none.
 
     Raises
     ------
@@ -72,6 +76,19 @@ def decide(records, finalists, selection, spaces, layouts, folds, trajectories, 
         if cosine is not None:
             untied = None if judgement is None else judgement.get("untied")
             judgement = {**cosine, "pruned": pruned, "untied": untied}
+        rivals = other_spaces(records, finalists, choice, tied)
+        if rivals:
+            models = [records[finalists[j]]["fitted"] for j in [choice] + rivals]
+            verdict = judge_supports(models, trajectories, dt, noise)
+            if verdict["best"]:  # neither None nor the choice
+                terms = [sorted(support_key(model)) for model in models]
+                choice = rivals[verdict["best"] - 1]
+                judgement = {**verdict, "terms": terms, "kind": "other spaces", "pruned": [],
+                             "untied": terms[verdict["best"]]}
+                choice, cosine = offer_cosine_law(records, finalists, choice, spaces, layouts,
+                                                  folds, trajectories, dt, noise, **search)
+                if cosine is not None:
+                    judgement = {**cosine, "pruned": [], "untied": judgement["untied"]}
     return choice, judgement
 
 
@@ -99,7 +116,7 @@ def choose(records, finalists, selection, trajectories, dt, noise):
         The finalists the rollout scores cannot tell from the best.
     judgement : dict or None
         :func:`~._judgement.judge_supports`' verdict, when the tied
-        finalists, with :func:`rival_finalists`, keep different terms.
+        finalists, with :func:`richer_finalist`, keep different terms.
     judged : list of HamiltonianRegressor
         The sets of terms weighed (empty without a verdict).
     """
@@ -117,9 +134,9 @@ def choose(records, finalists, selection, trajectories, dt, noise):
     for j in order:
         key = support_key(records[finalists[j]]["fitted"])
         representatives.setdefault(key, j)
-    rivals = rival_finalists(records, finalists, choice, tied)
-    for j in rivals:
-        representatives.setdefault(support_key(records[finalists[j]]["fitted"]), j)
+    richer = richer_finalist(records, finalists, choice, tied)
+    if richer is not None:
+        representatives.setdefault(support_key(records[finalists[richer]]["fitted"]), richer)
     if len(representatives) < 2:
         return choice, tied, None, []
     candidates = sorted(representatives.items(), key=lambda item: len(item[0]))[:MAX_JUDGED]
@@ -130,42 +147,52 @@ def choose(records, finalists, selection, trajectories, dt, noise):
     # "untied": the terms of an untied finalist the trajectories preferred.
     judgement.update(terms=[sorted(key) for key, _ in candidates], kind="tied finalists",
                      untied=sorted(support_key(models[judgement["best"]]))
-                     if choice in rivals else None)
+                     if choice == richer else None)
     return choice, tied, judgement, models
 
 
-def rival_finalists(records, finalists, choice, tied):
-    """Untied finalists judged with the tied ones: a richer set, and other spaces' best.
+def _scored_untied(records, finalists, tied):
+    """The untied finalists scored in every fold."""
+    return [j for j, flag in enumerate(tied)
+            if not flag and np.all(np.isfinite(records[finalists[j]]["scores"]))]
+
+
+def richer_finalist(records, finalists, choice, tied):
+    """The untied finalist with the fewest terms that keeps every term of the choice and more.
 
     The rollout scores cover a fraction of a second of held-out data, and
-    their tie is one paired standard error: a fold split's luck can leave
-    out of it a finalist that differs where the trajectories would tell.
-
-    * The *richer* finalist, the untied one with the fewest terms that keeps
-      every term of the choice and at most ``MAX_PRUNED`` more: a term whose
-      effect builds up over a whole orbit (``q**4`` of a pendulum at small
-      angles, on one record) can leave it behind a choice without it; then
-      :func:`~._offers.prune_terms` drops what it need not keep.
-    * For each model space no tied finalist is in, its best-scoring
-      finalist: on one record of a softening spring, ``p^2, cos 2q``
-      (periodic) was alone in the tie under one fold split, with the
-      spring's exact polynomial law one standard error behind.
-
-    Returns
-    -------
-    rivals : list of int
-        Indices into ``finalists`` (finalists with a failed fold left out).
+    their tie is one paired standard error: a term whose effect builds up
+    over a whole orbit (``q**4`` of a pendulum at small angles, on one
+    record) can leave its finalist behind a choice without it, by a fold
+    split's luck. So it is judged with the tied ones (at most ``MAX_PRUNED``
+    terms more than the choice), and :func:`~._offers.prune_terms` drops
+    what it need not keep. None when there is none.
     """
-    scored = [j for j, flag in enumerate(tied)
-              if not flag and np.all(np.isfinite(records[finalists[j]]["scores"]))]
     kept = support_key(records[finalists[choice]]["fitted"])
-    keys = {j: support_key(records[finalists[j]]["fitted"]) for j in scored}
-    richer = [j for j in scored if kept < keys[j] and len(keys[j]) - len(kept) <= MAX_PRUNED]
-    rivals = [min(richer, key=lambda j: len(keys[j]))] if richer else []
-    tied_spaces = {records[finalists[j]]["space"] for j in np.flatnonzero(tied)}
+    found = None
+    for j in _scored_untied(records, finalists, tied):
+        key = support_key(records[finalists[j]]["fitted"])
+        if kept < key and len(key) - len(kept) <= MAX_PRUNED and (
+                found is None or len(key) < found[0]):
+            found = (len(key), j)
+    return None if found is None else found[1]
+
+
+def other_spaces(records, finalists, choice, tied):
+    """The best-scoring untied finalist of each model space no tied finalist is in.
+
+    Weighed by the trajectories against the final choice (the offers
+    included, so that a Taylor series offered its cosine law is not beaten
+    by another space's long series first): on one record of a softening
+    spring, ``p^2, cos 2q`` (the periodic space) was alone in the tie under
+    one fold split of four, with the exact polynomial law one standard error
+    behind. At most ``MAX_JUDGED - 1``, the best scores first.
+    """
+    taken = {records[finalists[j]]["space"] for j in np.flatnonzero(tied)}
+    taken.add(records[finalists[choice]]["space"])
     best = {}
-    for j in scored:
+    for j in _scored_untied(records, finalists, tied):
         space, score = records[finalists[j]]["space"], np.mean(records[finalists[j]]["scores"])
-        if space not in tied_spaces and (space not in best or score > best[space][0]):
+        if space not in taken and (space not in best or score > best[space][0]):
             best[space] = (score, j)
-    return rivals + [j for _, j in best.values() if j not in rivals]
+    return [j for _, j in sorted(best.values(), reverse=True)][:MAX_JUDGED - 1]

@@ -95,17 +95,17 @@ class HamiltonianSearchCV(BaseEstimator):
     3. **Choose** among the finalists by the regressors' default rollout
        score against the held-out raw observations (which never sees the
        derivatives or smoothed states being compared), or by ``scoring``, by
-       ``selection``. When the finalists the scores cannot tell apart (and
-       rivals: the smallest finalist with the choice's terms and more, each
-       other space's best) keep different terms, each set is fitted to all the
-       raw trajectories (output error, one noise model at the same states for
-       all) and the lowest Bayesian information criterion decides
-       (``judgement_``): the exact law against its Taylor series, on no fold at
-       all. A larger set chosen so is pruned term by term while the criterion
-       improves (stage ``"pruned"``); up to two degrees of freedom, a choice
-       that keeps a softening even series of a polynomial position alone
-       (``-cos q``'s) is weighed so against its terms with ``cos q`` in their
-       place, with and without ``q**2`` (``terms``, stage ``"cosine"``).
+       ``selection``. When the finalists the scores cannot tell apart (and the
+       smallest finalist with the choice's terms and more) keep different
+       terms, each set is fitted to all the raw trajectories (output error, one
+       noise model at the same states for all) and the lowest Bayesian
+       information criterion decides (``judgement_``): the exact law against
+       its Taylor series, on no fold at all. A larger set chosen so is pruned
+       term by term while the criterion improves (stage ``"pruned"``); up to
+       two degrees of freedom, a choice that keeps a softening even series of a
+       polynomial position alone (``-cos q``'s) is weighed so against its terms
+       with ``cos q`` in their place, with and without ``q**2`` (``terms``,
+       stage ``"cosine"``); last, against each other space's best finalist.
     4. **Refine** (``refine="trajectories"``) the chosen model, refitted on
        all the data: the coefficients of its kept terms are fitted to the
        raw trajectories themselves, each simulated from an initial state of
@@ -279,10 +279,10 @@ class HamiltonianSearchCV(BaseEstimator):
         every trajectory lies on one level of the chosen law's energy and so
         determines it only there: :class:`~sk_hamiltonian.IllConditionedWarning`).
     judgement_ : dict or None
-        Stage 3's last verdict among sets of terms: ``kind`` (``"tied
-        finalists"``, or ``"cosine law"``: the choice against its terms with
-        ``cos q`` in place of the Taylor series, with ``gain`` and
-        ``gain_se``), ``terms`` of each, their ``rss`` (weighted residual
+        Stage 3's verdict among sets of terms that decided: ``kind``
+        (``"tied finalists"``, ``"other spaces"``, or ``"cosine law"``: the
+        choice against its terms with ``cos q`` in place of the Taylor series,
+        with ``gain`` and ``gain_se``), ``terms`` of each, their ``rss`` (weighted residual
         sums of squares; per segment ``segment_rss``), ``n_terms``, ``bic``,
         ``best``, ``pruned`` (the terms dropped from the choice) and ``untied``
         (the terms of an untied finalist the trajectories preferred to the
