@@ -121,20 +121,32 @@ def test_a_model_whose_simulation_fails_is_left_as_fitted(exact):
     np.testing.assert_array_equal(model.coef_, coef)
 
 
-def test_fit_trajectories_recovers_a_harmonic_oscillator():
-    # H = a p^2 / 2 + b q^2 / 2: gradients (a p, b q), linear in (a, b).
+HARMONIC_STARTS = np.array([[1.0, 0.0], [0.0, 2.0], [0.5, 0.5]])
+
+
+def harmonic_oscillator(t):
+    """``H = a p^2 / 2 + b q^2 / 2`` as a FlowModel, and its exact flow for a = 2, b = 3.
+
+    Gradients ``(a p, b q)``, linear in ``(a, b)``; the flow from
+    :data:`HARMONIC_STARTS` at times ``t``: ``p = p0 cos - sqrt(b/a) q0 sin``,
+    ``q = q0 cos + sqrt(a/b) p0 sin``.
+    """
     model = FlowModel(
         gradients=lambda X: np.stack([np.diag(x) for x in X]),
         hessian=lambda X, theta: np.broadcast_to(np.diag(theta), (len(X), 2, 2)),
         wrap_difference=lambda D: D,
     )
-    t = np.linspace(0, 2, 21)
-    x0 = np.array([[1.0, 0.0], [0.0, 2.0], [0.5, 0.5]])
     omega = np.sqrt(2.0 * 3.0)
-    # Exact flow of a = 2, b = 3: p = p0 cos - sqrt(b/a) q0 sin, q = q0 cos + sqrt(a/b) p0 sin.
     c, s = np.cos(omega * t), np.sin(omega * t)
     Y = np.stack([np.column_stack([p0 * c - np.sqrt(1.5) * q0 * s,
-                                   q0 * c + p0 * s / np.sqrt(1.5)]) for p0, q0 in x0])
+                                   q0 * c + p0 * s / np.sqrt(1.5)])
+                  for p0, q0 in HARMONIC_STARTS])
+    return model, Y
+
+
+def test_fit_trajectories_recovers_a_harmonic_oscillator():
+    model, Y = harmonic_oscillator(np.linspace(0, 2, 21))
+    x0 = HARMONIC_STARTS
     steps = [np.full(10, 0.01)] * 20
     result = fit_trajectories(model, np.array([1.5, 3.5]), [(Y, steps)], n_reweights=0)
     np.testing.assert_allclose(result["theta"], [2.0, 3.0], rtol=1e-7)
@@ -272,17 +284,7 @@ def test_fits_weighed_at_the_same_states_minimise_the_same_cost():
     # Under relative noise the weights depend on the states they are taken
     # at: fits from two starts, each weighed at its own first simulation,
     # minimise two costs; weighed at given states, one cost with one minimum.
-    model = FlowModel(
-        gradients=lambda X: np.stack([np.diag(x) for x in X]),
-        hessian=lambda X, theta: np.broadcast_to(np.diag(theta), (len(X), 2, 2)),
-        wrap_difference=lambda D: D,
-    )
-    t = np.linspace(0, 4, 81)
-    x0 = np.array([[1.0, 0.0], [0.0, 2.0], [0.5, 0.5]])
-    omega = np.sqrt(2.0 * 3.0)
-    c, s = np.cos(omega * t), np.sin(omega * t)
-    Y = np.stack([np.column_stack([p0 * c - np.sqrt(1.5) * q0 * s,
-                                   q0 * c + p0 * s / np.sqrt(1.5)]) for p0, q0 in x0])
+    model, Y = harmonic_oscillator(np.linspace(0, 4, 81))
     Y = Y * (1 + 0.05 * np.random.default_rng(0).standard_normal(Y.shape))
     groups = [(Y, [np.full(5, 0.01)] * 80)]
     noise = np.array([[0.0, 0.05**2], [0.0, 0.05**2]])
