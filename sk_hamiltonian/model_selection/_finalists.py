@@ -35,8 +35,8 @@ def decide(records, finalists, selection, spaces, layouts, folds, trajectories, 
     Where the trajectories chose among the tied finalists (and the richer
     one) a set of terms larger than another, :func:`~._offers.prune_terms`
     drops what they need not keep; then :func:`~._offers.offer_cosine_law`;
-    then :func:`other_spaces`' finalists, and the offer again for one the
-    trajectories prefer. Marks each finalist's record ``tied`` (the offered
+    then :func:`weigh_other_spaces`, and the offer again for another space's
+    finalist the trajectories prefer. Marks each finalist's record ``tied`` (the offered
     laws never are).
 
     Returns
@@ -71,25 +71,50 @@ def decide(records, finalists, selection, spaces, layouts, folds, trajectories, 
             choice, pruned = prune_terms(records, finalists, choice, judged, spaces, layouts,
                                          folds, trajectories, dt, noise, **search)
             judgement["pruned"] = pruned
-        choice, cosine = offer_cosine_law(records, finalists, choice, spaces, layouts, folds,
-                                          trajectories, dt, noise, **search)
-        if cosine is not None:
-            untied = None if judgement is None else judgement.get("untied")
-            judgement = {**cosine, "pruned": pruned, "untied": untied}
-        rivals = other_spaces(records, finalists, choice, tied)
-        if rivals:
-            models = [records[finalists[j]]["fitted"] for j in [choice] + rivals]
-            verdict = judge_supports(models, trajectories, dt, noise)
-            if verdict["best"]:  # neither None nor the choice
-                terms = [sorted(support_key(model)) for model in models]
-                choice = rivals[verdict["best"] - 1]
-                judgement = {**verdict, "terms": terms, "kind": "other spaces", "pruned": [],
-                             "untied": terms[verdict["best"]]}
-                choice, cosine = offer_cosine_law(records, finalists, choice, spaces, layouts,
-                                                  folds, trajectories, dt, noise, **search)
-                if cosine is not None:
-                    judgement = {**cosine, "pruned": [], "untied": judgement["untied"]}
+        untied = None if judgement is None else judgement.get("untied")
+        offer = (spaces, layouts, folds, trajectories, dt, noise)
+        choice, judgement = _offer_cosine(records, finalists, choice, judgement, pruned, untied,
+                                          *offer, **search)
+        choice, verdict = weigh_other_spaces(records, finalists, choice, tied, trajectories, dt,
+                                             noise)
+        if verdict is not None:
+            choice, judgement = _offer_cosine(records, finalists, choice, verdict, [],
+                                              verdict["untied"], *offer, **search)
     return choice, judgement
+
+
+def _offer_cosine(records, finalists, choice, judgement, pruned, untied, spaces, layouts,
+                  folds, trajectories, dt, noise, **search):
+    """:func:`~._offers.offer_cosine_law`; its verdict, where it ran, replaces ``judgement``."""
+    choice, cosine = offer_cosine_law(records, finalists, choice, spaces, layouts, folds,
+                                      trajectories, dt, noise, **search)
+    if cosine is not None:
+        judgement = {**cosine, "pruned": pruned, "untied": untied}
+    return choice, judgement
+
+
+def weigh_other_spaces(records, finalists, choice, tied, trajectories, dt, noise):
+    """The choice against :func:`other_spaces`' finalists, on the trajectories.
+
+    Returns
+    -------
+    choice : int
+        The choice, or the other space's finalist the criterion prefers.
+    verdict : dict or None
+        :func:`~._judgement.judge_supports`' verdict (``kind`` ``"other
+        spaces"``, ``untied`` the winner's terms) where another space won;
+        None otherwise.
+    """
+    rivals = other_spaces(records, finalists, choice, tied)
+    if not rivals:
+        return choice, None
+    models = [records[finalists[j]]["fitted"] for j in [choice] + rivals]
+    verdict = judge_supports(models, trajectories, dt, noise)
+    if not verdict["best"]:  # None, or the choice itself
+        return choice, None
+    terms = [sorted(support_key(model)) for model in models]
+    verdict.update(terms=terms, kind="other spaces", pruned=[], untied=terms[verdict["best"]])
+    return rivals[verdict["best"] - 1], verdict
 
 
 def choose(records, finalists, selection, trajectories, dt, noise):
@@ -144,10 +169,10 @@ def choose(records, finalists, selection, trajectories, dt, noise):
     judgement = judge_supports(models, trajectories, dt, noise)
     if judgement["best"] is not None:
         choice = candidates[judgement["best"]][1]
+    terms = [sorted(key) for key, _ in candidates]
     # "untied": the terms of an untied finalist the trajectories preferred.
-    judgement.update(terms=[sorted(key) for key, _ in candidates], kind="tied finalists",
-                     untied=sorted(support_key(models[judgement["best"]]))
-                     if choice == richer else None)
+    judgement.update(terms=terms, kind="tied finalists",
+                     untied=terms[judgement["best"]] if choice == richer else None)
     return choice, tied, judgement, models
 
 
@@ -169,13 +194,10 @@ def richer_finalist(records, finalists, choice, tied):
     what it need not keep. None when there is none.
     """
     kept = support_key(records[finalists[choice]]["fitted"])
-    found = None
-    for j in _scored_untied(records, finalists, tied):
-        key = support_key(records[finalists[j]]["fitted"])
-        if kept < key and len(key) - len(kept) <= MAX_PRUNED and (
-                found is None or len(key) < found[0]):
-            found = (len(key), j)
-    return None if found is None else found[1]
+    keys = {j: support_key(records[finalists[j]]["fitted"])
+            for j in _scored_untied(records, finalists, tied)}
+    richer = [j for j, key in keys.items() if kept < key and len(key) - len(kept) <= MAX_PRUNED]
+    return min(richer, key=lambda j: len(keys[j]), default=None)
 
 
 def other_spaces(records, finalists, choice, tied):

@@ -19,8 +19,9 @@ law without being physics, and for what the folds need:
    contiguous stretches of them (blocked cross-validation: no sample is in a
    training and a test fold; a ``cv`` splitter object is given the stretches
    as ``groups``, and one that ignores groups, a shuffled ``KFold``, splits
-   the segments as asked, which ``preparation_`` says). Otherwise the folds are those of ``cv`` over
-   the user's trajectories, and the pieces of one trajectory share its fold.
+   the segments as asked, which ``preparation_`` says). Otherwise the folds
+   are those of ``cv`` over the user's trajectories, and the pieces of one
+   trajectory share its fold.
 4. **Clean data.** The noise the data show by themselves (their sixth
    differences, :func:`~sk_hamiltonian._trajectory_fit.difference_noise_model`)
    below :data:`CLEAN_LEVEL` of every variable's spread marks them as exact.
