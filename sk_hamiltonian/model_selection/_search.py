@@ -62,29 +62,29 @@ class HamiltonianSearchCV(BaseEstimator):
     The search prepares the data, then runs three stages on the same folds
     and a fourth on all the data:
 
-    0. **Prepare** the data (``preparation_``):
-       samples far from their neighbours (spikes, dropped readings) are left
-       out and their trajectories cut there, repeated trajectories left out,
-       both named in an :class:`~sk_hamiltonian.OutlierWarning` and in
-       ``preparation_``; with fewer than two trajectories per fold, the
-       records are cut into contiguous segments and each fold holds out a
-       contiguous stretch of them (blocked cross-validation); exact data
-       (noise below 0.001 % of every variable) are searched with finite
-       differences and the fit targets exact to ``O(dt**4)`` only (Simpson's
-       pairs, the weak form).
+    0. **Prepare** the data (``preparation_``): samples far from their
+       neighbours (spikes, dropped readings) are left out and their
+       trajectories cut there, repeated trajectories left out, both named in an
+       :class:`~sk_hamiltonian.OutlierWarning` and in ``preparation_``; with
+       fewer than two trajectories per fold, the records are cut into
+       contiguous segments and each fold holds out a contiguous stretch of them
+       (blocked cross-validation); exact data (noise below 0.001 % of every
+       variable) are searched with finite differences and the fit targets exact
+       to ``O(dt**4)`` only (Simpson's pairs, the weak form).
     1. **Screen** the model spaces (``spaces``) on one reference layout (the
-       middle de-noising degree; beyond two degrees of freedom, the middle
-       one of those whose polynomials follow the trajectories, without a
-       :class:`~sk_hamiltonian.SmoothingWarning`, else finite differences)
-       and the derivative fit (Simpson's pairs for
-       exact data), at the smallest degree: each candidate's held-out
-       *equation error* (the relative residual of the held-out trajectories'
-       least-squares rows) ranks spaces, degrees and thresholds against the
-       same targets. The spaces the data cannot reject against the best are
-       kept, the smallest models first (at most three): a candidate is
-       rejected only when it is worse by one standard error, unpaired and
-       paired over the folds, and by 10 % (twice the part of an equation error a
-       richer model can take from the bias of the estimated derivatives).
+       middle de-noising degree; beyond two degrees of freedom, the middle one
+       of those whose polynomials follow the trajectories, without a
+       :class:`~sk_hamiltonian.SmoothingWarning`, else finite differences) and
+       the derivative fit (Simpson's pairs for exact data), at the smallest
+       degree: each candidate's held-out *equation error* (the relative
+       residual of the held-out trajectories' least-squares rows) ranks spaces,
+       degrees and thresholds against the same targets. The spaces the data
+       cannot reject against the best are kept, the smallest models first (at
+       most three): a candidate is rejected only when it is worse by one
+       standard error, unpaired and paired over the folds, and by 10 % (twice
+       the part of an equation error a richer model can take from the bias of
+       the estimated derivatives), than the best of all and than the best at
+       its own threshold (where that one is not rejected).
     2. **Search** every layout and fit target in the kept spaces (beyond two
        degrees of freedom, the layouts passed over by the screen are left
        out, unless all are), degree by degree from the smallest (a degree no
