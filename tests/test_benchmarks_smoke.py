@@ -334,3 +334,19 @@ def test_scale_study_cpu_limit_stops_a_fit_and_lifts_after():
     assert resource.getrlimit(resource.RLIMIT_CPU) == before
     with scale_study.cpu_limit(None):
         pass
+
+
+@pytest.mark.slow
+def test_hand_cut_runs_the_default_and_the_hand_cut_route_on_the_same_record(tmp_path):
+    proc = subprocess.run([sys.executable, str(BENCHMARKS / "hand_cut.py"), "--scenes",
+                           "pendulum", "--seeds", "0", "--output", str(tmp_path)],
+                          capture_output=True, text=True, timeout=900)
+    assert proc.returncode == 0, (proc.stdout + proc.stderr)[-3000:]
+    # The table's lines (a computed row is also printed as it finishes).
+    rows = [line.split() for line in proc.stdout.splitlines() if line.startswith("pendulum")]
+    assert [row[:3] for row in rows] == [["pendulum", "one", "0"], ["pendulum", "one", "geo"]]
+    # Both routes keep the pendulum's two terms on this record.
+    assert rows[0][4] == "True" and rows[0][6] == "True"
+    assert 0 < float(rows[0][3]) < 0.1 and 0 < float(rows[0][5]) < 0.1
+    assert sorted(p.name for p in tmp_path.iterdir()) == [
+        "pendulum_one_add2_0_search-hand.pkl", "pendulum_one_add2_0_search.pkl"]
