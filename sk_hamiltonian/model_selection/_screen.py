@@ -250,8 +250,8 @@ def screen_ties(records):
     exact terms 10 % above a mixed space's 34, 3 % above a periodic space's
     five at the same threshold).
 
-    Returns the row of the lowest mean error (None when no candidate has
-    finite errors in every fold) and the ties, as :func:`~._selection.pick_within`.
+    Returns the row :func:`~._selection.pick_within` picks among the overall
+    ties (None when no candidate has finite errors in every fold) and the ties.
     """
     errors = np.array([r["errors"] for r in records])
     best, tied = pick_within(errors, np.array([r["n_terms"] for r in records]),
