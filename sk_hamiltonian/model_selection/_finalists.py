@@ -15,7 +15,13 @@ Taylor series; last, against the best finalist of each other model space
 import numpy as np
 
 from ._judgement import judge_supports, support_key
-from ._offers import MAX_PRUNED, offer_cosine_law, prune_terms
+from ._offers import (
+    MAX_PRUNED,
+    coupling_terms,
+    disputed_terms,
+    offer_cosine_law,
+    prune_terms,
+)
 from ._selection import pick_among
 
 # At most this many distinct sets of terms are judged by their trajectory fits
@@ -34,7 +40,8 @@ def decide(records, finalists, selection, spaces, layouts, folds, trajectories, 
 
     Where the trajectories chose among the tied finalists (and the richer
     one) a set of terms larger than another, :func:`~._offers.prune_terms`
-    drops what they need not keep; then :func:`~._offers.offer_cosine_law`;
+    drops what they need not keep; then :func:`~._offers.offer_cosine_law`
+    (an offer taken is pruned of its terms coupling momenta and positions);
     then :func:`weigh_other_spaces`, and the offer again for another space's
     finalist the trajectories prefer. Marks each finalist's record ``tied`` (the offered
     laws never are).
@@ -68,7 +75,8 @@ def decide(records, finalists, selection, spaces, layouts, folds, trajectories, 
     if selection == "simplest" and noise is not None:
         pruned = []
         if judgement is not None and judgement["best"] is not None:
-            choice, pruned = prune_terms(records, finalists, choice, judged, spaces, layouts,
+            disputed = disputed_terms(records[finalists[choice]]["fitted"], judged)
+            choice, pruned = prune_terms(records, finalists, choice, disputed, spaces, layouts,
                                          folds, trajectories, dt, noise, **search)
             judgement["pruned"] = pruned
         untied = None if judgement is None else judgement.get("untied")
@@ -85,10 +93,19 @@ def decide(records, finalists, selection, spaces, layouts, folds, trajectories, 
 
 def _offer_cosine(records, finalists, choice, judgement, pruned, untied, spaces, layouts,
                   folds, trajectories, dt, noise, **search):
-    """:func:`~._offers.offer_cosine_law`; its verdict, where it ran, replaces ``judgement``."""
+    """:func:`~._offers.offer_cosine_law`; its verdict, where it ran, replaces ``judgement``.
+
+    An offer taken is pruned of its terms coupling momenta and positions
+    (:func:`~._offers.coupling_terms`) while the criterion improves.
+    """
     choice, cosine = offer_cosine_law(records, finalists, choice, spaces, layouts, folds,
                                       trajectories, dt, noise, **search)
     if cosine is not None:
+        if cosine["best"]:
+            coupling = coupling_terms(records[finalists[choice]]["fitted"])
+            choice, dropped = prune_terms(records, finalists, choice, coupling, spaces, layouts,
+                                          folds, trajectories, dt, noise, **search)
+            pruned = pruned + dropped
         judgement = {**cosine, "pruned": pruned, "untied": untied}
     return choice, judgement
 

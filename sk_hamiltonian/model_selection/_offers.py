@@ -9,7 +9,8 @@ more finalist each, and weighed against it by the trajectories
 * :func:`prune_terms`: where the tied finalists kept different terms and the
   trajectories chose a set larger than another, the terms they disagree on
   are dropped one at a time while the criterion improves (backward
-  elimination). On one record of one orbit, terms such as ``p**2 q**2`` are
+  elimination); and so are the terms coupling momenta and positions of an
+  offer taken. On one record of one orbit, terms such as ``p**2 q**2`` are
   nearly collinear with powers of ``q`` (``p**2`` is a function of ``q`` on
   the orbit), and a threshold can keep them and drop a term of the law.
 * :func:`offer_cosine_law`: a position whose Taylor series of ``-cos q``
@@ -29,8 +30,11 @@ from ._screen import PER_COORDINATE_DOF
 
 # The law offered in place of a Taylor series of cos q, with as many terms, is
 # taken only where it explains the trajectories better by this many standard
-# errors of the difference (from its spread over the segments of the fit).
-OFFER_Z = 2.0
+# errors of the difference (from its spread over the segments of the fit):
+# the one-standard-error tie of the search's other stages, within which the
+# choice stays. Two standard errors kept a Taylor series the data could tell
+# from the law (docs/default_search.rst has the runs).
+OFFER_Z = 1.0
 # At most this many terms are tried for dropping (each round costs one
 # trajectory fit per term).
 MAX_PRUNED = 6
@@ -67,9 +71,55 @@ def kept_powers(regressor):
     return regressor.powers_[KeptTerms(regressor).terms]
 
 
-def prune_terms(records, finalists, choice, judged, spaces, layouts, folds, trajectories, dt,
-                noise, **search):
-    """Backward elimination of the terms the judged sets disagree on, by the trajectories.
+def disputed_terms(model, judged):
+    """The terms of ``model`` that some of the ``judged`` sets do not keep.
+
+    Only a choice that bought terms over a smaller set has any: the smallest
+    has no term the criterion took without a rival.
+
+    Parameters
+    ----------
+    model : HamiltonianRegressor
+        The chosen finalist's fitted regressor.
+    judged : list of HamiltonianRegressor
+        The sets of terms the trajectories weighed.
+
+    Returns
+    -------
+    candidates : list of tuple
+        Multi-indices of the terms :func:`prune_terms` may drop.
+    """
+    current = kept_powers(model)
+    sets = [set(map(tuple, kept_powers(m))) for m in judged]
+    common = set.intersection(*sets)
+    if len(current) <= min(map(len, sets)):
+        return []
+    return [row for row in map(tuple, current) if row not in common]
+
+
+def coupling_terms(model):
+    """The kept terms of ``model`` that hold both a momentum and a position.
+
+    On an orbit ``p**2`` is a function of ``q``, so a term such as
+    ``p**2 q**2`` is nearly collinear with the position's own terms; under
+    multiplicative noise one may be kept beside a separable law (a pendulum
+    with a spring, ``p^2/2 - 2 cos q + q^2/2``, 200 records at 2 %: ``0.0003
+    p^2*q^2`` on three seeds of six).
+
+    Returns
+    -------
+    candidates : list of tuple
+        Multi-indices of the terms :func:`prune_terms` may drop.
+    """
+    current = kept_powers(model)
+    n_dof = current.shape[1] // 2
+    both = np.any(current[:, :n_dof] != 0, axis=1) & np.any(current[:, n_dof:] != 0, axis=1)
+    return [tuple(row) for row in current[both]]
+
+
+def prune_terms(records, finalists, choice, candidates, spaces, layouts, folds, trajectories,
+                dt, noise, **search):
+    """Backward elimination of the ``candidates`` among the chosen terms, by the trajectories.
 
     Parameters
     ----------
@@ -78,9 +128,10 @@ def prune_terms(records, finalists, choice, judged, spaces, layouts, folds, traj
         pruned law (stage ``"pruned"``) when one is found.
     choice : int
         The chosen finalist (index into ``finalists``).
-    judged : list of HamiltonianRegressor
-        The sets of terms the trajectories weighed; the terms of the choice
-        that some of them do not keep may be dropped.
+    candidates : list of tuple
+        Multi-indices of the chosen terms that may be dropped
+        (:func:`disputed_terms`, :func:`coupling_terms`); none is tried when
+        there are more than ``MAX_PRUNED``.
     spaces, layouts, folds, trajectories, dt, noise, **search
         As :func:`offer_cosine_law` takes them.
 
@@ -93,12 +144,8 @@ def prune_terms(records, finalists, choice, judged, spaces, layouts, folds, traj
     chosen = records[finalists[choice]]
     model = chosen["fitted"]
     current = kept_powers(model)
-    sets = [set(map(tuple, kept_powers(m))) for m in judged]
-    common = set.intersection(*sets)
-    candidates = [row for row in map(tuple, current) if row not in common]
-    # Only a choice that bought terms over a smaller set is pruned: the
-    # smallest has no term the criterion took without a rival.
-    if len(current) <= min(map(len, sets)) or not candidates or len(candidates) > MAX_PRUNED:
+    candidates = list(candidates)
+    if not candidates or len(candidates) > MAX_PRUNED:
         return choice, []
     names = {tuple(term.powers): term.text for term in hamiltonian_terms(model, rtol=1e-10)}
     Xt = layouts[chosen["denoise"]]
@@ -199,8 +246,8 @@ def offer_cosine_law(records, finalists, choice, spaces, layouts, folds, traject
     weighed by :func:`~._judgement.judge_supports`. The offer with the lower
     criterion is chosen where the criterion also prefers it to the choice and
     either it keeps fewer terms, or the choice's residual sum exceeds its own
-    by ``OFFER_Z`` standard errors of the difference over the fit's segments
-    (:func:`~._judgement.offered_gain`).
+    by ``OFFER_Z`` (one) standard errors of the difference over the fit's
+    segments (:func:`~._judgement.offered_gain`, :func:`offer_taken`).
 
     Parameters
     ----------
@@ -256,13 +303,32 @@ def offer_cosine_law(records, finalists, choice, spaces, layouts, folds, traject
     judgement["gain"], judgement["gain_se"] = offered_gain(
         [judgement["segment_rss"][0], judgement["segment_rss"][better]])
     # With as many terms, the criterion is the residual sums, whose difference
-    # on one orbit can be chance (one record of the coupled pendula: 2.4 of
-    # 16 000, with a standard error of 1.8 over its segments): the offer is
-    # taken only where the segments show it. With fewer terms, the criterion
-    # is parsimony itself.
-    if bic[better] < bic[0] and (n_terms[better] < n_terms[0]
-                                 or judgement["gain"] > OFFER_Z * judgement["gain_se"]):
+    # on one orbit can be chance: the offer is taken only where the segments
+    # show it. With fewer terms, the criterion is parsimony itself.
+    if offer_taken(bic[[0, better]], n_terms[[0, better]], judgement["gain"],
+                   judgement["gain_se"]):
         judgement["best"] = better
         return indices[better - 1], judgement
     judgement["best"] = 0
     return choice, judgement
+
+
+def offer_taken(bic, n_terms, gain, gain_se):
+    """Whether an offer is taken against the choice.
+
+    Parameters
+    ----------
+    bic, n_terms : ndarray of shape (2,)
+        The criterion and number of terms of the choice, then the offer.
+    gain, gain_se : float
+        The choice's weighted residual sum less the offer's, and its standard
+        error over the fit's segments (:func:`~._judgement.offered_gain`).
+
+    Returns
+    -------
+    taken : bool
+        True where the criterion prefers the offer and either it keeps fewer
+        terms (the criterion is then parsimony itself) or its gain exceeds
+        ``OFFER_Z`` standard errors (NaN, from too few segments, never does).
+    """
+    return bool(bic[1] < bic[0] and (n_terms[1] < n_terms[0] or gain > OFFER_Z * gain_se))
