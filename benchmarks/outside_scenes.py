@@ -34,6 +34,9 @@ The scenes (``p`` the momentum, ``q`` the position):
 * ``quartic``: ``p^2/2 + q^4/4``;
 * ``mass``: ``(1 + q^2) p^2/2 + q^2/2``, a mass that depends on the position;
 * ``anisotropic``: ``(p1^2 + p2^2)/2 + q1^2/2 + q2^2 + 0.3 q1 q2``;
+* ``pendulum_spring``: ``p^2/2 - 2 cos q + q^2/2``, a pendulum with a spring,
+  below ``H = 1.5`` (angles within 1.1 rad): its exact law mixes ``cos q``
+  and ``q^2``, and its Taylor series ``q^2, q^4`` keeps as many terms;
 * ``morse``: ``p^2/2 + (1 - exp(-q))^2`` below ``H = 0.5``, in none of the spaces;
 * ``exponential``: the paper's ``exp(-p^2 - 1.1 q^4)``, in none of the spaces.
 """
@@ -63,7 +66,7 @@ from robustness_study import noise_of  # noqa: E402
 from search_study import T_END, model_error  # noqa: E402
 
 SHAPES = {"many": (200, 41), "few": (5, 801), "one": (1, 4001), "four": (4, 1001),
-          "one3": (1, 3001)}
+          "one3": (1, 3001), "two": (2, 2001)}
 
 
 def one_degree(name, potential, force, box, law):
@@ -125,6 +128,11 @@ SCENES = {
     "mass": (mass(), 1.0, 0.05, [("many", "add2"), ("few", "add2"), ("one", "add2")]),
     "anisotropic": (anisotropic(), 1.0, 0.05,
                     [("many", "add2"), ("few", "add2"), ("one", "add2")]),
+    "pendulum_spring": (one_degree("pendulum_spring", lambda q: q**2 / 2 - 2 * np.cos(q),
+                                   lambda q: q + 2 * np.sin(q), [[-2.5, 2.5], [-2.5, 2.5]],
+                                   {"p^2", "q^2", "cos(q)"}), 1.5, 0.05,
+                        [("many", "add2"), ("many", "add8"), ("many", "mult2"), ("few", "add2"),
+                         ("two", "add2")]),
     "morse": (one_degree("morse", lambda q: (1 - np.exp(-q)) ** 2,
                          lambda q: 2 * (1 - np.exp(-q)) * np.exp(-q),
                          [[-1, 1], [-0.5, 1.5]], None), 0.5, 0.05,
