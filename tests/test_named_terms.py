@@ -9,7 +9,7 @@ from sk_hamiltonian import HamiltonianRegressor
 from sk_hamiltonian.datasets import HamiltonianSystem, anharmonic_spring, coupled_pendula
 from sk_hamiltonian.inspection import hamiltonian_terms
 from sk_hamiltonian.model_selection import HamiltonianSearchCV
-from sk_hamiltonian.model_selection._offers import cosine_terms, coupling_terms
+from sk_hamiltonian.model_selection._offers import cosine_terms, inherited_terms
 
 
 def spring_states(n=400, seed=0):
@@ -103,13 +103,21 @@ def test_the_cosine_offer_replaces_a_softening_series_of_a_position_alone():
     assert cosine_terms(odd, X) is None
 
 
-def test_the_coupling_terms_hold_a_momentum_and_a_position():
+def test_an_offer_inherits_the_choices_terms_that_hold_a_position_but_its_own_squares():
     X, y = spring_states()
-    model = HamiltonianRegressor(degree=4, mixed=[False, True],
-                                 terms=[[2, 0], [0, 2], [0, -1], [2, 2], [1, 1]]).fit(X, y)
-    assert sorted(coupling_terms(model)) == [(1, 1), (2, 2)]
-    separable = HamiltonianRegressor(degree=4, terms=[[2, 0], [0, 2], [0, 4]]).fit(X, y)
-    assert coupling_terms(separable) == []
+    # Noisy, so that every named term keeps a coefficient.
+    y = y + 0.05 * np.random.default_rng(1).standard_normal(y.shape)
+    choice = HamiltonianRegressor(degree=4, terms=[[2, 0], [0, 1], [0, 2], [0, 3], [0, 4],
+                                                   [2, 2]]).fit(X, y)
+    offer = HamiltonianRegressor(degree=4, mixed=[False, True],
+                                 terms=[[2, 0], [0, -1], [0, 1], [0, 2], [0, 3], [2, 2],
+                                        [1, 1]]).fit(X, y)
+    # p^2 is kinetic, cos q and p*q are the offer's own, q^2 is the square
+    # of the position the offer puts cos q on: none is inherited.
+    assert sorted(inherited_terms(offer, choice)) == [(0, 1), (0, 3), (2, 2)]
+    # Without cos q, q^2 is inherited like any other power.
+    plain = HamiltonianRegressor(degree=4, terms=[[2, 0], [0, 2], [0, 3]]).fit(X, y)
+    assert sorted(inherited_terms(plain, choice)) == [(0, 2), (0, 3)]
 
 
 def test_the_softening_is_read_from_the_series_over_the_data_not_the_sign_of_q4():
@@ -254,7 +262,7 @@ def pendulum_with_spring(n_records, seed):
 
 
 @pytest.mark.slow
-def test_an_offer_taken_is_pruned_of_a_coupling_term():
+def test_an_offer_taken_is_pruned_of_a_term_it_inherited():
     # The Taylor series the search chose kept a small p^2 q^2 beside q^2 and
     # q^4 (relative noise); the cosine law offered in their place inherits
     # it, and the trajectories need it no more than its price.

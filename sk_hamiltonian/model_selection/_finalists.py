@@ -17,8 +17,8 @@ import numpy as np
 from ._judgement import judge_supports, support_key
 from ._offers import (
     MAX_PRUNED,
-    coupling_terms,
     disputed_terms,
+    inherited_terms,
     offer_cosine_law,
     prune_terms,
 )
@@ -41,7 +41,7 @@ def decide(records, finalists, selection, spaces, layouts, folds, trajectories, 
     Where the trajectories chose among the tied finalists (and the richer
     one) a set of terms larger than another, :func:`~._offers.prune_terms`
     drops what they need not keep; then :func:`~._offers.offer_cosine_law`
-    (an offer taken is pruned of its terms coupling momenta and positions);
+    (an offer taken is pruned of the terms it kept from the choice);
     then :func:`weigh_other_spaces`, and the offer again for another space's
     finalist the trajectories prefer. Marks each finalist's record ``tied`` (the offered
     laws never are).
@@ -95,15 +95,16 @@ def _offer_cosine(records, finalists, choice, judgement, pruned, untied, spaces,
                   folds, trajectories, dt, noise, **search):
     """:func:`~._offers.offer_cosine_law`; its verdict, where it ran, replaces ``judgement``.
 
-    An offer taken is pruned of its terms coupling momenta and positions
-    (:func:`~._offers.coupling_terms`) while the criterion improves.
+    An offer taken is pruned of the terms it kept from the choice
+    (:func:`~._offers.inherited_terms`) while the criterion improves.
     """
+    before = records[finalists[choice]]["fitted"]
     choice, cosine = offer_cosine_law(records, finalists, choice, spaces, layouts, folds,
                                       trajectories, dt, noise, **search)
     if cosine is not None:
         if cosine["best"]:
-            coupling = coupling_terms(records[finalists[choice]]["fitted"])
-            choice, dropped = prune_terms(records, finalists, choice, coupling, spaces, layouts,
+            inherited = inherited_terms(records[finalists[choice]]["fitted"], before)
+            choice, dropped = prune_terms(records, finalists, choice, inherited, spaces, layouts,
                                           folds, trajectories, dt, noise, **search)
             pruned = pruned + dropped
         judgement = {**cosine, "pruned": pruned, "untied": untied}

@@ -9,8 +9,8 @@ more finalist each, and weighed against it by the trajectories
 * :func:`prune_terms`: where the tied finalists kept different terms and the
   trajectories chose a set larger than another, the terms they disagree on
   are dropped one at a time while the criterion improves (backward
-  elimination); and so are the terms coupling momenta and positions of an
-  offer taken. On one record of one orbit, terms such as ``p**2 q**2`` are
+  elimination); and so are the terms an offer taken kept from the choice
+  (:func:`inherited_terms`). On one record of one orbit, terms such as ``p**2 q**2`` are
   nearly collinear with powers of ``q`` (``p**2`` is a function of ``q`` on
   the orbit), and a threshold can keep them and drop a term of the law.
 * :func:`offer_cosine_law`: a position whose Taylor series of ``-cos q``
@@ -97,24 +97,41 @@ def disputed_terms(model, judged):
     return [row for row in map(tuple, current) if row not in common]
 
 
-def coupling_terms(model):
-    """The kept terms of ``model`` that hold both a momentum and a position.
+def inherited_terms(offer, choice):
+    """The terms an offer kept from the choice it replaces, to be pruned once it is taken.
 
-    On an orbit ``p**2`` is a function of ``q``, so a term such as
-    ``p**2 q**2`` is nearly collinear with the position's own terms; under
-    multiplicative noise one may be kept beside a separable law (a pendulum
-    with a spring, ``p^2/2 - 2 cos q + q^2/2``, 200 records at 2 %: ``0.0003
-    p^2*q^2`` on three seeds of six).
+    The offer's terms other than its cosines come from the choice, where a
+    threshold on the derivatives kept them beside a Taylor series; some of
+    them may have served that series only, or the noise. Those that hold a
+    position are returned: on an orbit ``p**2`` is a function of ``q``, so
+    ``p**2 q**2`` is nearly collinear with the position's own terms, and
+    relative noise kept ``p**2 q**2`` beside a separable law (a pendulum with
+    a spring, ``p^2/2 - 2 cos q + q^2/2``, 200 records at 2 %: up to
+    ``0.0004 p^2*q^2`` on six seeds of ten), or an odd power beside a
+    tilted pendulum's (``p^2/2 - cos q - 0.3 q``: ``2e-07 q^3``). Not
+    returned: the kinetic terms (momenta alone), without which a mechanical
+    model is none, and the squares of the positions the offer puts ``cos q``
+    on, which the offers with and without them settled.
+
+    Parameters
+    ----------
+    offer, choice : HamiltonianRegressor
+        The offer's and the choice's fitted regressors.
 
     Returns
     -------
     candidates : list of tuple
         Multi-indices of the terms :func:`prune_terms` may drop.
     """
-    current = kept_powers(model)
+    current = kept_powers(offer)
+    before = set(map(tuple, kept_powers(choice)))
     n_dof = current.shape[1] // 2
-    both = np.any(current[:, :n_dof] != 0, axis=1) & np.any(current[:, n_dof:] != 0, axis=1)
-    return [tuple(row) for row in current[both]]
+    positions = current[:, n_dof:]
+    cosine = np.any(positions < 0, axis=0)
+    alone = np.count_nonzero(current, axis=1) == 1
+    squares = alone & np.any((positions == 2) & cosine, axis=1)
+    keep = np.any(positions != 0, axis=1) & ~squares
+    return [tuple(row) for row in current[keep] if tuple(row) in before]
 
 
 def prune_terms(records, finalists, choice, candidates, spaces, layouts, folds, trajectories,
@@ -130,7 +147,7 @@ def prune_terms(records, finalists, choice, candidates, spaces, layouts, folds, 
         The chosen finalist (index into ``finalists``).
     candidates : list of tuple
         Multi-indices of the chosen terms that may be dropped
-        (:func:`disputed_terms`, :func:`coupling_terms`); none is tried when
+        (:func:`disputed_terms`, :func:`inherited_terms`); none is tried when
         there are more than ``MAX_PRUNED``.
     spaces, layouts, folds, trajectories, dt, noise, **search
         As :func:`offer_cosine_law` takes them.

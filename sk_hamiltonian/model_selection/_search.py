@@ -92,20 +92,20 @@ class HamiltonianSearchCV(BaseEstimator):
        threshold; within each layout and fit target, the candidate with the
        fewest terms among those the data cannot reject against the lowest
        equation error is that pair's *finalist*.
-    3. **Choose** among the finalists by the regressors' default rollout
-       score against the held-out raw observations (which never sees the
-       derivatives or smoothed states being compared), or by ``scoring``, by
-       ``selection``. When the finalists the scores cannot tell apart (and the
-       smallest finalist with the choice's terms and more) keep different
-       terms, each set is fitted to all the raw trajectories (output error, one
-       noise model at the same states for all) and the lowest Bayesian
-       information criterion decides (``judgement_``): the exact law against
-       its Taylor series, on no fold at all. A larger set chosen so is pruned
-       term by term while the criterion improves (stage ``"pruned"``); up to
-       two degrees of freedom, a choice that keeps a softening even series of a
-       polynomial position alone (``-cos q``'s) is weighed so against its terms
-       with ``cos q`` in their place, with and without ``q**2`` (``terms``,
-       stage ``"cosine"``); last, against each other space's best finalist.
+    3. **Choose** among the finalists by the regressors' default rollout score
+       against the held-out raw observations (blind to the derivatives and
+       smoothed states compared), or by ``scoring``, by ``selection``. When the
+       finalists the scores cannot tell apart (and the smallest finalist with
+       the choice's terms and more) keep different terms, each set is fitted to
+       all the raw trajectories (output error, one noise model at the same
+       states for all) and the lowest Bayesian information criterion decides
+       (``judgement_``): the exact law against its Taylor series, on no fold. A
+       larger set chosen so is pruned term by term while the criterion improves
+       (stage ``"pruned"``); up to two degrees of freedom, a choice that keeps a
+       softening even series of a polynomial position alone (``-cos q``'s) is
+       weighed so against its terms with ``cos q`` in their place, with and
+       without ``q**2`` (stage ``"cosine"``, taken at one standard error, then
+       pruned); last, against each other space's best finalist.
     4. **Refine** (``refine="trajectories"``) the chosen model, refitted on
        all the data: the coefficients of its kept terms are fitted to the
        raw trajectories themselves, each simulated from an initial state of
