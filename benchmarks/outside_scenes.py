@@ -37,6 +37,8 @@ The scenes (``p`` the momentum, ``q`` the position):
 * ``pendulum_spring``: ``p^2/2 - 2 cos q + q^2/2``, a pendulum with a spring,
   below ``H = 1.5`` (angles within 1.1 rad): its exact law mixes ``cos q``
   and ``q^2``, and its Taylor series ``q^2, q^4`` keeps as many terms;
+* ``tilted``: ``p^2/2 - cos q - 0.3 q``, a pendulum under a constant torque,
+  below ``H = -0.2`` (under the barrier at ``q = 2.84``);
 * ``morse``: ``p^2/2 + (1 - exp(-q))^2`` below ``H = 0.5``, in none of the spaces;
 * ``exponential``: the paper's ``exp(-p^2 - 1.1 q^4)``, in none of the spaces.
 """
@@ -133,6 +135,9 @@ SCENES = {
                                    {"p^2", "q^2", "cos(q)"}), 1.5, 0.05,
                         [("many", "add2"), ("many", "add8"), ("many", "mult2"), ("few", "add2"),
                          ("two", "add2")]),
+    "tilted": (one_degree("tilted", lambda q: -np.cos(q) - 0.3 * q, lambda q: np.sin(q) - 0.3,
+                          [[-2, 2], [-1.5, 2.0]], {"p^2", "cos(q)", "q"}), -0.2, 0.05,
+               [("many", "add2"), ("few", "add2"), ("many", "mult2")]),
     "morse": (one_degree("morse", lambda q: (1 - np.exp(-q)) ** 2,
                          lambda q: 2 * (1 - np.exp(-q)) * np.exp(-q),
                          [[-1, 1], [-0.5, 1.5]], None), 0.5, 0.05,
