@@ -1327,10 +1327,14 @@ def test_the_judgement_notes_name_what_stage_3_changed():
     assert "ranked lower (p^2, q^2, q^4, p^2*q^2) does better than their choice" in first
     assert "does better without p^2*q^2 (information criterion)" in second
     cosine = dict(kind="cosine law", best=2, untied=None, pruned=[], n_terms=[3, 3, 2],
-                  bic=[5505.66, 5505.7, 5497.42], gain=-3.4, gain_se=1.6)
+                  bic=[5505.66, 5505.7, 5497.42], gain=-3.4, gain_se=1.6,
+                  terms=[["p^2", "q^2", "q^4"], ["cos(q)", "p^2", "q^2"], ["cos(q)", "p^2"]])
     assert judgement_notes(cosine) == [
-        "the trajectories prefer cos q to the Taylor series the candidates kept (with fewer "
+        "the trajectories prefer cos q to q^2, q^4, which the candidates kept (with fewer "
         "terms, information criterion 5497.42 against 5505.66); the cosine law is chosen"]
+    harmonics = dict(cosine, terms=[["cos(2 q)", "cos(3 q)", "p^2"], ["cos(q)", "p^2"]], best=1,
+                     n_terms=[3, 2], bic=[5505.66, 5497.42])
+    assert "prefer cos q to cos(2 q), cos(3 q), which" in judgement_notes(harmonics)[0]
     as_many = dict(cosine, best=1, gain=11.1, gain_se=5.0)
     assert "weighted residual sum lower by 11.1, standard error 5" in judgement_notes(as_many)[0]
     assert judgement_notes(dict(cosine, best=0)) == []

@@ -9,7 +9,11 @@ from sk_hamiltonian import HamiltonianRegressor
 from sk_hamiltonian.datasets import HamiltonianSystem, anharmonic_spring, coupled_pendula
 from sk_hamiltonian.inspection import hamiltonian_terms
 from sk_hamiltonian.model_selection import HamiltonianSearchCV
-from sk_hamiltonian.model_selection._offers import cosine_terms, inherited_terms
+from sk_hamiltonian.model_selection._offers import (
+    cosine_terms,
+    harmonic_terms,
+    inherited_terms,
+)
 
 
 def spring_states(n=400, seed=0):
@@ -103,7 +107,7 @@ def test_the_cosine_offer_replaces_a_softening_series_of_a_position_alone():
     assert cosine_terms(odd, X) is None
 
 
-def test_an_offer_inherits_the_choices_terms_that_hold_a_position_but_its_own_squares():
+def test_an_offer_inherits_the_choices_terms_that_hold_a_position_but_those_it_put_in():
     X, y = spring_states()
     # Noisy, so that every named term keeps a coefficient.
     y = y + 0.05 * np.random.default_rng(1).standard_normal(y.shape)
@@ -112,12 +116,39 @@ def test_an_offer_inherits_the_choices_terms_that_hold_a_position_but_its_own_sq
     offer = HamiltonianRegressor(degree=4, mixed=[False, True],
                                  terms=[[2, 0], [0, -1], [0, 1], [0, 2], [0, 3], [2, 2],
                                         [1, 1]]).fit(X, y)
-    # p^2 is kinetic, cos q and p*q are the offer's own, q^2 is the square
-    # of the position the offer puts cos q on: none is inherited.
-    assert sorted(inherited_terms(offer, choice)) == [(0, 1), (0, 3), (2, 2)]
-    # Without cos q, q^2 is inherited like any other power.
+    # p^2 is kinetic, cos q and p*q are the offer's own, q^2 is a term the
+    # offer put in (offered with and without): none is inherited.
+    assert sorted(inherited_terms(offer, choice, [[0, 2], [0, -1]])) == [(0, 1), (0, 3), (2, 2)]
+    # Not put in, q^2 is inherited like any other power.
+    assert sorted(inherited_terms(offer, choice, [[0, -1]])) == [(0, 1), (0, 2), (0, 3), (2, 2)]
     plain = HamiltonianRegressor(degree=4, terms=[[2, 0], [0, 2], [0, 3]]).fit(X, y)
-    assert sorted(inherited_terms(plain, choice)) == [(0, 2), (0, 3)]
+    assert sorted(inherited_terms(plain, choice, [])) == [(0, 2), (0, 3)]
+
+
+def test_the_harmonic_offer_replaces_an_angles_cosines_alone_by_cos_q():
+    # States and derivatives of H = p^2/2 + 9.8 cos q about the top, noisy so
+    # that every named term keeps a coefficient.
+    rng = np.random.default_rng(0)
+    X = np.column_stack([rng.uniform(-4, 4, 400), rng.uniform(np.pi - 1.3, np.pi + 1.3, 400)])
+    p, q = X.T
+    y = np.column_stack([9.8 * np.sin(q), p]) + 0.05 * rng.standard_normal((400, 2))
+    periodic = [False, True]
+    many = HamiltonianRegressor(degree=6, periodic=periodic,
+                                terms=[[2, 0], [0, 2], [0, 3], [0, -1], [2, 1]]).fit(X, y)
+    terms, substituted = harmonic_terms(many)
+    # cos 2q and cos 3q become cos q; sin q and p^2 cos q stay.
+    assert sorted(map(tuple, terms)) == [(0, -1), (0, 1), (2, 0), (2, 1)]
+    assert substituted == [[0, 1]]
+    # With cos q among them, the harmonics still become cos q alone.
+    with_first = HamiltonianRegressor(degree=6, periodic=periodic,
+                                      terms=[[2, 0], [0, 1], [0, 2]]).fit(X, y)
+    assert sorted(map(tuple, harmonic_terms(with_first)[0])) == [(0, 1), (2, 0)]
+    # One harmonic, or harmonics of a mixed (not periodic) position: no offer.
+    assert harmonic_terms(HamiltonianRegressor(degree=6, periodic=periodic,
+                                               terms=[[2, 0], [0, 2]]).fit(X, y)) is None
+    mixed = HamiltonianRegressor(degree=6, mixed=periodic,
+                                 terms=[[2, 0], [0, -1], [0, -3]]).fit(X, y)
+    assert harmonic_terms(mixed) is None
 
 
 def test_the_softening_is_read_from_the_series_over_the_data_not_the_sign_of_q4():
@@ -339,3 +370,48 @@ def test_a_richer_rival_the_folds_left_untied_is_judged_with_the_tied_ones(
     model = search.best_estimator_[-1]
     assert sorted(coefficients(model)) == ["cos(q)", "p^2"]
     assert coefficients(model)["cos(q)"] == pytest.approx(-9.8, rel=0.01)
+
+
+def pendulum_about_the_top(n_records, seed):
+    """1 001-sample records of ``p^2/2 + 9.8 cos q``, angles from the top, within 1.3 of ``pi``.
+
+    Below ``H = -4.8``, dt = 0.02, 2 % additive noise: the pendulum of the
+    search study hanging at ``q = pi``, as an angle measured from the top
+    reads it.
+    """
+    def hamiltonian(X):
+        X = np.asarray(X, dtype=float)
+        return X[..., 0] ** 2 / 2 + 9.8 * np.cos(X[..., 1])
+
+    def gradient(X):
+        X = np.asarray(X, dtype=float)
+        return np.stack([X[..., 0], -9.8 * np.sin(X[..., 1])], axis=-1)
+
+    box = np.array([[-4, 4], [np.pi - 1.3, np.pi + 1.3]])
+    system = HamiltonianSystem("pendulum about the top", hamiltonian, gradient, domain=box,
+                               initial_state=[0.3, 3.0])
+    rng = np.random.default_rng(seed)
+    x0 = []
+    while len(x0) < n_records:
+        x = rng.uniform(box[:, 0], box[:, 1], size=(256, 2))
+        x0.extend(x[system.hamiltonian(x) < -4.8])
+    X = system.solve(np.array(x0[:n_records]), 0.02 * np.arange(1001), max_step=0.002)
+    scale = np.sqrt(np.mean(X.reshape(-1, 2) ** 2, axis=0))
+    return X + 0.02 * scale * rng.standard_normal(X.shape)
+
+
+@pytest.mark.slow
+def test_an_angle_about_its_top_gives_the_law_it_gives_about_the_bottom():
+    # On this draw the periodic space's threshold keeps cos 2q, cos 3q and
+    # cos 4q (about the top, no polynomial series is offered cos q); the
+    # same records shifted by pi are fitted as a Taylor series, offered
+    # cos q. The harmonic offer gives the law in both charts.
+    X = pendulum_about_the_top(4, seed=11)
+    top = searched(X, dt=0.02)
+    assert top.judgement_["kind"] == "cosine law" and top.judgement_["best"] == 1
+    assert sorted(top.judgement_["terms"][0]) == ["cos(2 q)", "cos(3 q)", "cos(4 q)", "p^2"]
+    bottom = searched(X - [0, np.pi], dt=0.02)
+    laws = [coefficients(search.best_estimator_[-1]) for search in (top, bottom)]
+    assert sorted(laws[0]) == sorted(laws[1]) == ["cos(q)", "p^2"]
+    assert laws[0]["cos(q)"] == pytest.approx(-laws[1]["cos(q)"], rel=1e-3)
+    assert laws[0]["cos(q)"] == pytest.approx(9.8, rel=0.01)

@@ -150,6 +150,8 @@ def judgement_notes(judgement):
         else:
             why = (f"weighted residual sum lower by {judgement['gain']:.3g}, standard error "
                    f"{judgement['gain_se']:.2g}")
-        notes.append(f"the trajectories prefer cos q to the Taylor series the candidates kept "
-                     f"({why}); the cosine law is chosen")
+        # The offer put cos q in place of a Taylor series or of an angle's harmonics.
+        replaced = [term for term in judgement["terms"][0] if term not in judgement["terms"][best]]
+        notes.append(f"the trajectories prefer cos q to {', '.join(replaced)}, which the "
+                     f"candidates kept ({why}); the cosine law is chosen")
     return notes

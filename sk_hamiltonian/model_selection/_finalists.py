@@ -99,11 +99,12 @@ def _offer_cosine(records, finalists, choice, judgement, pruned, untied, spaces,
     (:func:`~._offers.inherited_terms`) while the criterion improves.
     """
     before = records[finalists[choice]]["fitted"]
-    choice, cosine = offer_cosine_law(records, finalists, choice, spaces, layouts, folds,
-                                      trajectories, dt, noise, **search)
+    choice, cosine, substituted = offer_cosine_law(records, finalists, choice, spaces, layouts,
+                                                   folds, trajectories, dt, noise, **search)
     if cosine is not None:
         if cosine["best"]:
-            inherited = inherited_terms(records[finalists[choice]]["fitted"], before)
+            inherited = inherited_terms(records[finalists[choice]]["fitted"], before,
+                                        substituted)
             choice, dropped = prune_terms(records, finalists, choice, inherited, spaces, layouts,
                                           folds, trajectories, dt, noise, **search)
             pruned = pruned + dropped

@@ -102,10 +102,10 @@ class HamiltonianSearchCV(BaseEstimator):
        (``judgement_``): the exact law against its Taylor series, on no fold. A
        larger set chosen so is pruned term by term while the criterion improves
        (stage ``"pruned"``); up to two degrees of freedom, a choice that keeps a
-       softening even series of a polynomial position alone (``-cos q``'s) is
-       weighed so against its terms with ``cos q`` in their place, with and
-       without ``q**2`` (stage ``"cosine"``, taken at one standard error, then
-       pruned); last, against each other space's best finalist.
+       softening even series of a polynomial position alone (``-cos q``'s), or
+       several cosines of an angle, is weighed so against its terms with ``cos q``
+       in their place (with and without ``q**2``; stage ``"cosine"``, taken at one
+       standard error, then pruned); last, against each other space's best finalist.
     4. **Refine** (``refine="trajectories"``) the chosen model, refitted on
        all the data: the coefficients of its kept terms are fitted to the
        raw trajectories themselves, each simulated from an initial state of
@@ -279,14 +279,14 @@ class HamiltonianSearchCV(BaseEstimator):
         every trajectory lies on one level of the chosen law's energy and so
         determines it only there: :class:`~sk_hamiltonian.IllConditionedWarning`).
     judgement_ : dict or None
-        Stage 3's verdict among sets of terms that decided: ``kind``
-        (``"tied finalists"``, ``"other spaces"``, or ``"cosine law"``: the
-        choice against its terms with ``cos q`` in place of the Taylor series,
-        with ``gain`` and ``gain_se``), ``terms`` of each, their ``rss`` (weighted residual
-        sums of squares; per segment ``segment_rss``), ``n_terms``, ``bic``,
-        ``best``, ``pruned`` (the terms dropped from the choice) and ``untied``
-        (the terms of an untied finalist the trajectories preferred to the
-        rollout scores' choice, else None). None when no two sets were weighed.
+        Stage 3's verdict among sets of terms that decided: ``kind`` (``"tied
+        finalists"``, ``"other spaces"``, or ``"cosine law"``: the choice against its
+        terms with ``cos q`` in place of a Taylor series or of an angle's harmonics,
+        with ``gain`` and ``gain_se``), ``terms`` of each, their ``rss`` (weighted
+        residual sums of squares; per segment ``segment_rss``), ``n_terms``, ``bic``,
+        ``best``, ``pruned`` (the terms dropped from the choice) and ``untied`` (the
+        terms of an untied finalist the trajectories preferred, else None). None when
+        no two sets were weighed.
     refit_time_ : float
         Seconds of the final fit on all the data, refinement included (0 with
         ``refit=False``).
