@@ -39,6 +39,13 @@ The scenes (``p`` the momentum, ``q`` the position):
   and ``q^2``, and its Taylor series ``q^2, q^4`` keeps as many terms;
 * ``tilted``: ``p^2/2 - cos q - 0.3 q``, a pendulum under a constant torque,
   below ``H = -0.2`` (under the barrier at ``q = 2.84``);
+* ``top``: the paper's pendulum as an angle measured from the top reads it,
+  ``p^2/2 + 9.8 cos q`` with ``q`` within 1.3 of ``pi``, below ``H = -4.8``,
+  ``dt = 0.02``: the search's models wrap an angle into ``[-pi, pi)``, so the
+  error takes angle differences modulo ``2 pi`` for the model's periodic
+  variables (as it does wherever a model is periodic);
+* ``harmonics``: ``p^2/2 - cos q - cos(2 q)/2``, two harmonics, below
+  ``H = 0.3`` (angles within 1.4 rad);
 * ``morse``: ``p^2/2 + (1 - exp(-q))^2`` below ``H = 0.5``, in none of the spaces;
 * ``exponential``: the paper's ``exp(-p^2 - 1.1 q^4)``, in none of the spaces.
 """
@@ -138,6 +145,13 @@ SCENES = {
     "tilted": (one_degree("tilted", lambda q: -np.cos(q) - 0.3 * q, lambda q: np.sin(q) - 0.3,
                           [[-2, 2], [-1.5, 2.0]], {"p^2", "cos(q)", "q"}), -0.2, 0.05,
                [("many", "add2"), ("few", "add2"), ("many", "mult2")]),
+    "top": (one_degree("top", lambda q: 9.8 * np.cos(q), lambda q: -9.8 * np.sin(q),
+                       [[-4, 4], [np.pi - 1.3, np.pi + 1.3]], {"p^2", "cos(q)"}), -4.8, 0.02,
+            [("many", "add2"), ("four", "add2")]),
+    "harmonics": (one_degree("harmonics", lambda q: -np.cos(q) - np.cos(2 * q) / 2,
+                             lambda q: np.sin(q) + np.sin(2 * q), [[-3, 3], [-np.pi, np.pi]],
+                             {"p^2", "cos(q)", "cos(2 q)"}), 0.3, 0.05,
+                  [("many", "add2"), ("few", "add2"), ("many", "mult2")]),
     "morse": (one_degree("morse", lambda q: (1 - np.exp(-q)) ** 2,
                          lambda q: 2 * (1 - np.exp(-q)) * np.exp(-q),
                          [[-1, 1], [-0.5, 1.5]], None), 0.5, 0.05,
@@ -169,10 +183,14 @@ def records(system, energy, dt, shape, noise, seed):
 
 
 def fresh_error(model, system, energy):
-    """The median relative state error at ``T_END`` from 50 fresh states below ``energy``."""
+    """The median relative state error at ``T_END`` from 50 fresh states below ``energy``.
+
+    The model's periodic variables come out wrapped into their period: their
+    differences are taken modulo ``2 pi``.
+    """
     x0 = states_below(system, energy, 50, np.random.default_rng(99))
     truth = system.solve(x0, [0.0, T_END], max_step=0.01)[:, -1]
-    return model_error(model, x0, truth, angles=[])
+    return model_error(model, x0, truth, angles=list(np.flatnonzero(model.periodic_)))
 
 
 def by_hand(system, energy, dt, X):
