@@ -1338,3 +1338,18 @@ def test_the_judgement_notes_name_what_stage_3_changed():
     as_many = dict(cosine, best=1, gain=11.1, gain_se=5.0)
     assert "weighted residual sum lower by 11.1, standard error 5" in judgement_notes(as_many)[0]
     assert judgement_notes(dict(cosine, best=0)) == []
+
+
+def test_the_reports_rollouts_stay_in_the_chart_of_the_data():
+    # The model wraps an angle into [-pi, pi); the report's rollout of a state
+    # a turn further is the same curve a turn further, without jumps.
+    X = make_trajectories(single_pendulum(), 40, 20, 0.05, noise=0.0, random_state=0)
+    model = HamiltonianRegressor(4, periodic=[False, True], momentum_degree=2,
+                                 threshold=0.03).fit(DerivativeTransformer(dt=0.05).fit_transform(X))
+    t = 0.05 * np.arange(200)
+    x0 = np.array([2.0, 1.0])
+    near, ok = cli_fit._rollout(model, x0, t, "rk4")
+    far, ok_far = cli_fit._rollout(model, x0 + [0.0, 2 * np.pi], t, "rk4")
+    assert ok == ok_far == t.size
+    np.testing.assert_allclose(far, near + [0.0, 2 * np.pi], atol=1e-9)
+    assert np.abs(np.diff(far[:, 1])).max() < 1.0

@@ -221,6 +221,17 @@ def test_prediction_band_holds_the_refits(pendulum):
     assert np.all(high[1:] - low[1:] > 0) and np.all(high[0] == low[0])
 
 
+def test_prediction_band_of_an_angle_is_in_the_chart_of_x0(pendulum):
+    # The same state with its angle a turn further: the same band, a turn
+    # further (the models wrap an angle into [-pi, pi); the band does not).
+    model = resampled(pendulum, n_resamples=10)
+    t = np.linspace(0, 4, 41)
+    bands = [prediction_band(model, x0, t) for x0 in ([0.5, 1.0], [0.5, 1.0 + 2 * np.pi])]
+    for edge, turned in zip(*bands):
+        np.testing.assert_allclose(turned, edge + [0.0, 2 * np.pi], atol=1e-9)
+    assert np.abs(np.diff(bands[1][1][:, 1])).max() < 1.0  # no jump of 2 pi
+
+
 def test_model_file_keeps_the_resampling(pendulum, tmp_path):
     for params in (dict(), dict(damping=True, threshold=0.0, fit_on="steps")):
         model = resampled(pendulum, n_resamples=7, **params)

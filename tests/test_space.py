@@ -249,6 +249,27 @@ def test_wrap_and_outside_treat_angles_as_circles():
     assert np.allclose(space.wrap_difference([[0.0, 2 * np.pi - 0.1]]), [[0.0, -0.1]])
 
 
+def test_unwrap_continues_angles_from_the_chart_of_the_start():
+    domain, periodic = box([0, 1], 2)
+    space = ModelSpace(domain, index_set(2, 2, periodic=periodic), periodic)
+    # An angle about pi, as the data give it, and its run wrapped into [-pi, pi).
+    q = np.pi + 1.2 * np.sin(np.linspace(0, 6, 61))
+    chart = np.column_stack([np.cos(q), q])
+    wrapped = space.wrap(chart)
+    assert np.abs(np.diff(wrapped[:, 1])).max() > 6  # the wrapped run jumps
+    np.testing.assert_allclose(space.unwrap(wrapped, chart[0]), chart, atol=1e-12)
+    # Runs of several initial states at once; a NaN stays NaN from its time on.
+    runs = np.stack([wrapped, wrapped])
+    runs[1, 30:] = np.nan
+    unwrapped = space.unwrap(runs, chart[0])
+    np.testing.assert_allclose(unwrapped[0], chart, atol=1e-12)
+    np.testing.assert_allclose(unwrapped[1, :30], chart[:30], atol=1e-12)
+    assert np.isnan(unwrapped[1, 30:]).all()
+    # Without periodic variables nothing changes.
+    plain = ModelSpace(domain, index_set(2, 2), np.zeros(2, bool))
+    assert np.array_equal(plain.unwrap(wrapped, chart[0]), wrapped)
+
+
 # ----------------------------------------------------------- Gram, stability
 @pytest.mark.parametrize("periodic, m, degree", [([0, 0], 2, 6), ([0, 1], 2, 5), ([0, 0, 1, 1], 4, 4)])
 def test_closed_form_gram_matches_quadrature(periodic, m, degree):

@@ -287,6 +287,11 @@ def _horizon_steps(horizon, step, n_states):
 
 
 def _rollout(model, x0, t, method):
-    """Simulate, keeping what precedes a failure; return (states, n_valid_times)."""
+    """Simulate, keeping what precedes a failure; return (states, n_valid_times).
+
+    The model wraps an angle into its period; the report draws and compares
+    the rollout in the chart of ``x0``, the data's (a pendulum about
+    ``q = pi`` would otherwise jump between ``pi`` and ``-pi``).
+    """
     Y, failed_at = integrate(model._integrator(method), x0[None], t, None)
-    return Y[:, 0], int(failed_at[0])
+    return model._space.unwrap(Y[:, 0], x0), int(failed_at[0])

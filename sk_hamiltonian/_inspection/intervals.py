@@ -247,7 +247,10 @@ def prediction_band(model, x0, t, *, level=0.9, max_step=None):
     -------
     low, median, high : ndarray of shape (n_times, n_states)
         The band's edges and its median, in the columns' order; NaN where
-        fewer than half of the models reached a time.
+        fewer than half of the models reached a time. A periodic variable
+        is continued across its period from ``x0`` (in ``x0``'s chart, not
+        wrapped as :meth:`~sk_hamiltonian.HamiltonianRegressor.simulate`
+        wraps it).
 
     Raises
     ------
@@ -285,6 +288,10 @@ def prediction_band(model, x0, t, *, level=0.9, max_step=None):
     n = (model.resampled_coef_ if draws is None else draws[0]).shape[0]
     wrap = model._space.wrap if model.periodic_.any() else None
     runs = simulate_ensemble(field, np.repeat(x0, n, axis=0), t, step, wrap)
+    if wrap is not None:
+        # An angle's percentiles are taken in one chart, x0's: wrapped runs
+        # on either side of the period's edge would span the whole period.
+        runs = model._space.unwrap(runs, x0[0])
     reached = np.isfinite(runs).all(axis=2).sum(axis=0)
     tail = 100 * (1 - level) / 2
     with warnings.catch_warnings():

@@ -244,6 +244,24 @@ class ModelSpace:
             D[..., self.periodic] = wrap_to_period(D[..., self.periodic], -period / 2, period / 2)
         return D
 
+    def unwrap(self, Y, start):
+        """Trajectories ``Y`` with the periodic variables continued from the chart of ``start``.
+
+        ``Y`` has shape ``(..., n_times, n_states)``, its periodic variables
+        wrapped into their period (as the integrators output them); each step
+        is taken in ``[-P/2, P/2)`` and summed from ``start``, the states at
+        the first time in the chart wanted (the data's). A NaN stays, and
+        so does every later time of its trajectory.
+        """
+        Y = np.array(Y, dtype=float)
+        if self.periodic.any():
+            steps = self.wrap_difference(np.diff(Y, axis=-2))[..., self.periodic]
+            start = np.broadcast_to(np.asarray(start, dtype=float),
+                                    Y[..., 0, :].shape)[..., self.periodic]
+            Y[..., 0, self.periodic] = start
+            Y[..., 1:, self.periodic] = start[..., None, :] + np.cumsum(steps, axis=-2)
+        return Y
+
     def outside(self, X, slack=0.0):
         """Rows of ``X`` with a non-periodic variable outside its interval."""
         return outside_domain(X, self.domain, self.periodic, slack)
