@@ -44,6 +44,9 @@ The scenes (``p`` the momentum, ``q`` the position):
   ``dt = 0.02``: the search's models wrap an angle into ``[-pi, pi)``, so the
   error takes angle differences modulo ``2 pi`` for the model's periodic
   variables (as it does wherever a model is periodic);
+* ``torsion_top``: a torsion pendulum about its top, ``p^2/2 + 2 cos q + (q -
+  pi)^2/2`` below ``H = -0.5`` (``q`` within 1.0 of ``pi``): in the data's
+  chart its law is ``cos q, q^2, q`` and its Taylor series holds odd powers;
 * ``harmonics``: ``p^2/2 - cos q - cos(2 q)/2``, two harmonics, below
   ``H = 0.3`` (angles within 1.4 rad);
 * ``morse``: ``p^2/2 + (1 - exp(-q))^2`` below ``H = 0.5``, in none of the spaces;
@@ -148,6 +151,11 @@ SCENES = {
     "top": (one_degree("top", lambda q: 9.8 * np.cos(q), lambda q: -9.8 * np.sin(q),
                        [[-4, 4], [np.pi - 1.3, np.pi + 1.3]], {"p^2", "cos(q)"}), -4.8, 0.02,
             [("many", "add2"), ("four", "add2")]),
+    "torsion_top": (one_degree("torsion_top", lambda q: 2 * np.cos(q) + (q - np.pi) ** 2 / 2,
+                               lambda q: (q - np.pi) - 2 * np.sin(q),
+                               [[-2.5, 2.5], [np.pi - 2.5, np.pi + 2.5]],
+                               {"p^2", "cos(q)", "q^2", "q"}), -0.5, 0.05,
+                    [("many", "add2"), ("few", "add2")]),
     "harmonics": (one_degree("harmonics", lambda q: -np.cos(q) - np.cos(2 * q) / 2,
                              lambda q: np.sin(q) + np.sin(2 * q), [[-3, 3], [-np.pi, np.pi]],
                              {"p^2", "cos(q)", "cos(2 q)"}), 0.3, 0.05,
