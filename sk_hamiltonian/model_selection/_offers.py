@@ -306,11 +306,12 @@ def offer_cosine_law(records, finalists, choice, spaces, layouts, folds, traject
     harmonics replaced by ``cos q_i`` (:func:`harmonic_terms`). Each is
     fitted and scored as a finalist of the chosen layout, fit target and
     degree (:func:`named_finalist`, stage ``"cosine"``), then all are
-    weighed with the choice by :func:`~._judgement.judge_supports`. The offer with the lower
-    criterion is chosen where the criterion also prefers it to the choice and
-    either it keeps fewer terms, or the choice's residual sum exceeds its own
-    by ``OFFER_Z`` (one) standard errors of the difference over the fit's
-    segments (:func:`~._judgement.offered_gain`, :func:`offer_taken`).
+    weighed with the choice by :func:`~._judgement.judge_supports`. The
+    offer with the lower criterion is chosen where the criterion also prefers
+    it to the choice and either it keeps fewer terms, or the choice's
+    residual sum exceeds its own by ``OFFER_Z`` (one) standard errors of the
+    difference over the fit's segments (:func:`~._judgement.offered_gain`,
+    :func:`offer_taken`).
 
     Parameters
     ----------
