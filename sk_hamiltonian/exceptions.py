@@ -57,9 +57,12 @@ class IllConditionedWarning(UserWarning):
     :class:`~sk_hamiltonian.model_selection.HamiltonianSearchCV` when every
     trajectory lies on one level of the chosen law's energy (one record, or
     records all at one energy): such data determine the law only on that
-    level, ``H`` and ``H + (H - E)^2 g`` agree there for any ``g``, and the
-    search keeps the law with the fewest terms among those that agree;
-    trajectories at other energies pin it down.
+    level, ``H`` and ``H + (H - E)^2 g`` agree there for any ``g``. The
+    search prefers few terms among laws that explain the data alike, which
+    does not make the law it keeps the true one (one record of ``p^2/2 +
+    p^4/4 + q^2/2`` kept six terms in ``p^2`` and powers of ``q``, right on
+    the recorded level and wrong off it); trajectories at other energies pin
+    it down.
     """
 
 

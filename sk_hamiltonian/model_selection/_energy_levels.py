@@ -88,8 +88,9 @@ def one_level_message(found):
         f"{found['energy']:.4g} (their median energies within {100 * found['span']:.2g} % of "
         f"its range over the box the data fill), as the segments of one record are. "
         f"Trajectories on one energy level determine the law only on that level (H and "
-        f"H + (H - E)^2 g agree there for any g), and among laws that agree on it the search "
-        f"keeps the one with the fewest terms. Record trajectories at other energies to pin "
+        f"H + (H - E)^2 g agree there for any g): the search prefers few terms among laws "
+        f"that explain these data alike, but one with more terms may be kept, and a law that "
+        f"fits this level may be wrong off it. Record trajectories at other energies to pin "
         f"the law down."
     )
 
