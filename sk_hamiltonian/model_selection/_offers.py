@@ -22,6 +22,7 @@ more finalist each, and weighed against it by the trajectories
 import warnings
 
 import numpy as np
+from scipy.special import comb
 from sklearn.base import clone
 
 from .._trajectory_fit import KeptTerms, split_times
@@ -121,7 +122,8 @@ def inherited_terms(offer, choice, substituted):
         The offer's and the choice's fitted regressors.
     substituted : list of list of int
         Multi-indices of the terms the offer put in (:func:`offer_cosine_law`):
-        ``cos q_i``, and the ``q_i**2`` offered with and without.
+        ``cos q_i``, and the ``q_i**2`` of an even series, offered with and
+        without.
 
     Returns
     -------
@@ -208,6 +210,15 @@ def cosine_terms(regressor, states):
     inverted pendulum held up by a spring, which at 20 % noise the spring's
     records preferred on two seeds of ten.
 
+    A series that also keeps odd powers ``q_i**3, q_i**5, ...`` alone is the
+    Taylor series about another centre: an angle read from the top, about
+    ``pi`` (a torsion pendulum there, ``p^2/2 + 2 cos q + (q - pi)^2/2``,
+    kept ``q, q^2, q^3, q^4``). Its powers from three up are replaced by
+    ``cos q_i`` where their quartic coefficient about the mean of the
+    observed ``q_i`` is negative, and ``q_i**2`` and ``q_i`` (a spring about
+    that centre) are offered with and without, then left to the pruning of
+    an offer taken: a tilted pendulum needs ``q`` and not ``q**2``.
+
     Parameters
     ----------
     regressor : HamiltonianRegressor
@@ -218,11 +229,14 @@ def cosine_terms(regressor, states):
     Returns
     -------
     substitute : tuple or None
-        ``(mixed, terms, squares)``: the flags of the mixed positions (those
-        already mixed and the substituted ones), the terms' multi-indices in
-        the mixed space (:class:`~sk_hamiltonian.HamiltonianRegressor`'s
-        ``terms``) and the rows of the substituted positions' ``q_i**2``;
-        None when no position qualifies.
+        ``(mixed, terms, squares, settled)``: the flags of the mixed positions
+        (those already mixed and the substituted ones), the terms'
+        multi-indices in the mixed space
+        (:class:`~sk_hamiltonian.HamiltonianRegressor`'s ``terms``), the rows
+        of the substituted positions' ``q_i**2`` (and ``q_i``, for a series
+        with odd powers), offered with and without, and those of them the two
+        offers settle (the ``q_i**2`` of an even series); None when no
+        position qualifies.
     """
     kept = KeptTerms(regressor)
     powers, values = regressor.powers_[kept.terms], kept.theta0
@@ -230,26 +244,40 @@ def cosine_terms(regressor, states):
     mixed = np.asarray(regressor.mixed_, dtype=bool)
     free = ~(mixed | np.asarray(regressor.periodic_, dtype=bool))
     swapped = np.zeros(n_states, dtype=bool)
-    squares = []
+    squares, settled = [], []
     for i in range(n_states // 2, n_states):
+        if not free[i]:
+            continue
         alone = np.count_nonzero(powers, axis=1) == 1
-        series = alone & (powers[:, i] >= 4) & (powers[:, i] % 2 == 0)
-        if not (free[i] and series.any()):
-            continue
-        anharmonic = states[:, [i]] ** powers[series, i] @ values[series]
-        if np.mean(anharmonic) >= 0:
-            continue
+        higher = alone & (powers[:, i] >= 3)
+        if np.any(higher & (powers[:, i] % 2 == 1)):
+            series, spring = higher, (2, 1)
+            k = powers[series, i].astype(float)
+            centre = np.mean(states[:, i])
+            quartic = values[series] @ (comb(k, 4) * centre ** np.maximum(k - 4, 0))
+            if not quartic < 0:
+                continue
+        else:
+            series, spring = alone & (powers[:, i] >= 4) & (powers[:, i] % 2 == 0), (2,)
+            if not series.any():
+                continue
+            anharmonic = states[:, [i]] ** powers[series, i] @ values[series]
+            if np.mean(anharmonic) >= 0:
+                continue
         swapped[i] = True
         powers, values = powers[~series], values[~series]
-        for code in (-1, 2):  # cos q_i (code -1 of a mixed variable), then q_i**2
+        for code in (-1, *spring):  # cos q_i (code -1 of a mixed variable), then the spring
             row = np.zeros(n_states, dtype=powers.dtype)
             row[i] = code
             if not np.any(np.all(powers == row, axis=1)):
                 powers, values = np.vstack([powers, row]), np.append(values, 0.0)
-        squares.append(row.tolist())
+            if code > 0:
+                squares.append(row.tolist())
+        if spring == (2,):
+            settled.append(squares[-1])
     if not swapped.any():
         return None
-    return (mixed | swapped).tolist(), powers.tolist(), squares
+    return (mixed | swapped).tolist(), powers.tolist(), squares, settled
 
 
 def harmonic_terms(regressor):
@@ -348,11 +376,11 @@ def offer_cosine_law(records, finalists, choice, spaces, layouts, folds, traject
     space = spaces[chosen["space"]]
     substitute = cosine_terms(chosen["fitted"], np.concatenate(split_times(trajectories, dt)[1]))
     if substitute is not None:
-        mixed, terms, squares = substitute
+        mixed, terms, squares, settled = substitute
         space = {**space, "mixed": mixed}
         offers = [terms, [row for row in terms if row not in squares]]
-        # Each row of squares is q_i**2 alone; cos q_i is code -1 there.
-        substituted = squares + [[-1 if code else 0 for code in row] for row in squares]
+        # Each row of squares is q_i**2 or q_i alone; cos q_i is code -1 there.
+        substituted = settled + [[-1 if code else 0 for code in row] for row in squares]
     elif (harmonic := harmonic_terms(chosen["fitted"])) is not None:
         offers, substituted = [harmonic[0]], harmonic[1]
     else:

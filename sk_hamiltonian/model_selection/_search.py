@@ -102,7 +102,7 @@ class HamiltonianSearchCV(BaseEstimator):
        (``judgement_``): the exact law against its Taylor series, on no fold. A
        larger set chosen so is pruned term by term while the criterion improves
        (stage ``"pruned"``); up to two degrees of freedom, a choice that keeps a
-       softening even series of a polynomial position alone (``-cos q``'s), or
+       softening series of a polynomial position alone (``-cos q``'s), or
        several cosines of an angle, is weighed so against its terms with ``cos q``
        in their place (with and without ``q**2``; stage ``"cosine"``, taken at one
        standard error, then pruned); last, against each other space's best finalist.
