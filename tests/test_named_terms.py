@@ -299,23 +299,9 @@ def test_an_offer_ahead_by_one_standard_error_is_taken():
 
 def pendulum_with_spring(n_records, seed):
     """200 x 41 records of ``H = p^2/2 - 2 cos q + q^2/2`` below ``H = 1.5``, 2 % relative noise."""
-    def hamiltonian(X):
-        X = np.asarray(X, dtype=float)
-        return X[..., 0] ** 2 / 2 - 2 * np.cos(X[..., 1]) + X[..., 1] ** 2 / 2
-
-    def gradient(X):
-        X = np.asarray(X, dtype=float)
-        return np.stack([X[..., 0], 2 * np.sin(X[..., 1]) + X[..., 1]], axis=-1)
-
-    system = HamiltonianSystem("pendulum with a spring", hamiltonian, gradient,
-                               domain=[[-2.5, 2.5], [-2.5, 2.5]], initial_state=[0.3, 0.5])
-    rng = np.random.default_rng(seed)
-    x0 = []
-    while len(x0) < n_records:
-        x = rng.uniform(-2.5, 2.5, size=(256, 2))
-        x0.extend(x[system.hamiltonian(x) < 1.5])
-    X = system.solve(np.array(x0[:n_records]), 0.05 * np.arange(41), max_step=0.005)
-    return X * (1 + 0.02 * rng.standard_normal(X.shape))
+    return one_degree_records(lambda q: q**2 / 2 - 2 * np.cos(q), lambda q: q + 2 * np.sin(q),
+                              [[-2.5, 2.5], [-2.5, 2.5]], 1.5, n_records, 41, 0.05, seed,
+                              relative=True)
 
 
 @pytest.mark.slow
@@ -398,39 +384,42 @@ def test_a_richer_rival_the_folds_left_untied_is_judged_with_the_tied_ones(
     assert coefficients(model)["cos(q)"] == pytest.approx(-9.8, rel=0.01)
 
 
-def records_about_the_top(potential, force, box, energy, n_records, n_times, dt, seed):
+def one_degree_records(potential, force, box, energy, n_records, n_times, dt, seed,
+                       relative=False):
     """Records of ``p^2/2 + V(q)`` from uniform states of ``box`` below ``energy``, 2 % noise.
 
-    The noise is additive, 2 % of each variable's root-mean-square, as in
-    ``benchmarks/outside_scenes.py``, whose ``top`` and ``torsion_top``
-    scenes these are.
+    ``force`` is ``V'``. The noise is 2 % of each variable's root-mean-square
+    (as in ``benchmarks/outside_scenes.py``, whose ``top`` and ``torsion_top``
+    scenes these give), or with ``relative`` 2 % of each sample.
     """
     def hamiltonian(X):
-        X = np.asarray(X, dtype=float)
-        return X[..., 0] ** 2 / 2 + potential(X[..., 1])
+        p, q = np.moveaxis(np.asarray(X, dtype=float), -1, 0)
+        return p**2 / 2 + potential(q)
 
     def gradient(X):
-        X = np.asarray(X, dtype=float)
-        return np.stack([X[..., 0], force(X[..., 1])], axis=-1)
+        p, q = np.moveaxis(np.asarray(X, dtype=float), -1, 0)
+        return np.stack([p, force(q)], axis=-1)
 
     box = np.asarray(box, dtype=float)
-    system = HamiltonianSystem("about the top", hamiltonian, gradient, domain=box,
-                               initial_state=[0.3, 3.0])
+    system = HamiltonianSystem("one degree of freedom", hamiltonian, gradient, domain=box,
+                               initial_state=[0.3, 0.5])
     rng = np.random.default_rng(seed)
     x0 = []
     while len(x0) < n_records:
         x = rng.uniform(box[:, 0], box[:, 1], size=(256, 2))
         x0.extend(x[system.hamiltonian(x) < energy])
     X = system.solve(np.array(x0[:n_records]), dt * np.arange(n_times), max_step=dt / 10)
+    if relative:
+        return X * (1 + 0.02 * rng.standard_normal(X.shape))
     scale = np.sqrt(np.mean(X.reshape(-1, 2) ** 2, axis=0))
     return X + 0.02 * scale * rng.standard_normal(X.shape)
 
 
 def pendulum_about_the_top(n_records, seed):
     """1 001-sample records of ``p^2/2 + 9.8 cos q``, angles from the top, within 1.3 of ``pi``."""
-    return records_about_the_top(lambda q: 9.8 * np.cos(q), lambda q: -9.8 * np.sin(q),
-                                 [[-4, 4], [np.pi - 1.3, np.pi + 1.3]], -4.8, n_records, 1001,
-                                 0.02, seed)
+    return one_degree_records(lambda q: 9.8 * np.cos(q), lambda q: -9.8 * np.sin(q),
+                              [[-4, 4], [np.pi - 1.3, np.pi + 1.3]], -4.8, n_records, 1001, 0.02,
+                              seed)
 
 
 @pytest.mark.slow
@@ -455,10 +444,10 @@ def test_a_torsion_pendulum_about_its_top_is_offered_its_law():
     # In the data's chart the choice keeps q, q^2, q^3 and q^4, the Taylor
     # series about pi; its powers from three up are offered cos q, with the
     # spring q^2, q about pi, which is the law.
-    X = records_about_the_top(lambda q: 2 * np.cos(q) + (q - np.pi) ** 2 / 2,
-                              lambda q: (q - np.pi) - 2 * np.sin(q),
-                              [[-2.5, 2.5], [np.pi - 2.5, np.pi + 2.5]], -0.5, 200, 41, 0.05,
-                              seed=11)
+    X = one_degree_records(lambda q: 2 * np.cos(q) + (q - np.pi) ** 2 / 2,
+                           lambda q: (q - np.pi) - 2 * np.sin(q),
+                           [[-2.5, 2.5], [np.pi - 2.5, np.pi + 2.5]], -0.5, 200, 41, 0.05,
+                           seed=11)
     search = searched(X)
     judgement = search.judgement_
     assert judgement["kind"] == "cosine law" and judgement["best"] == 1
