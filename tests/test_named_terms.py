@@ -94,11 +94,12 @@ def test_the_cosine_offer_replaces_a_softening_series_of_a_position_alone():
     y = np.column_stack([-np.sin(q), p]) + 0.05 * np.random.default_rng(1).standard_normal((400, 2))
     model = HamiltonianRegressor(degree=6, terms=[[2, 0], [0, 2], [0, 4], [0, 6], [2, 2]]).fit(X, y)
     assert len(hamiltonian_terms(model)) == 5 and coefficients(model)["q^4"] < 0
-    mixed, terms, squares, settled = cosine_terms(model, X)
+    mixed, terms, springs, settled = cosine_terms(model, X)
     assert mixed == [False, True]
     # q^4 and q^6 alone become cos q; p^2 q^2 is not a power of q alone.
     assert sorted(map(tuple, terms)) == [(0, -1), (0, 2), (2, 0), (2, 2)]
-    assert squares == settled == [[0, 2]]
+    # q^2 is offered with and without; the offers settle it and cos q.
+    assert springs == [[0, 2]] and sorted(settled) == [[0, -1], [0, 2]]
     # A hardening quartic (the spring's) and odd powers are not offered.
     X, y = spring_states()
     assert cosine_terms(HamiltonianRegressor(degree=4, terms=[[2, 0], [0, 2], [0, 4]]).fit(X, y),
@@ -161,12 +162,12 @@ def test_a_series_with_odd_powers_is_read_about_the_datas_centre():
     y = y + 0.05 * rng.standard_normal(y.shape)
     series = [[2, 0], [0, 1], [0, 2], [0, 3], [0, 4]]
     model = HamiltonianRegressor(degree=4, terms=series).fit(X, y)
-    mixed, terms, squares, settled = cosine_terms(model, X)
+    mixed, terms, springs, settled = cosine_terms(model, X)
     assert mixed == [False, True]
     # q^3 and q^4 become cos q; q^2 and q, a spring about pi, are offered
     # with and without, and left to the pruning of an offer taken.
     assert sorted(map(tuple, terms)) == [(0, -1), (0, 1), (0, 2), (2, 0)]
-    assert sorted(squares) == [[0, 1], [0, 2]] and settled == []
+    assert sorted(springs) == [[0, 1], [0, 2]] and settled == [[0, -1]]
     # A hardening series with odd powers (p^2/4 + q^2 + q^3/2 + q^4/2) is not
     # offered a cosine: its quartic about the data's centre is positive.
     X = np.column_stack([rng.uniform(-2, 2, 400), rng.uniform(-1.2, 1.0, 400)])

@@ -229,14 +229,14 @@ def cosine_terms(regressor, states):
     Returns
     -------
     substitute : tuple or None
-        ``(mixed, terms, squares, settled)``: the flags of the mixed positions
+        ``(mixed, terms, springs, settled)``: the flags of the mixed positions
         (those already mixed and the substituted ones), the terms'
         multi-indices in the mixed space
         (:class:`~sk_hamiltonian.HamiltonianRegressor`'s ``terms``), the rows
         of the substituted positions' ``q_i**2`` (and ``q_i``, for a series
-        with odd powers), offered with and without, and those of them the two
-        offers settle (the ``q_i**2`` of an even series); None when no
-        position qualifies.
+        with odd powers), offered with and without, and the rows the offers
+        settle, which no pruning tries: each ``cos q_i``, and the ``q_i**2``
+        of an even series; None when no position qualifies.
     """
     kept = KeptTerms(regressor)
     powers, values = regressor.powers_[kept.terms], kept.theta0
@@ -244,13 +244,14 @@ def cosine_terms(regressor, states):
     mixed = np.asarray(regressor.mixed_, dtype=bool)
     free = ~(mixed | np.asarray(regressor.periodic_, dtype=bool))
     swapped = np.zeros(n_states, dtype=bool)
-    squares, settled = [], []
+    springs, settled = [], []
     for i in range(n_states // 2, n_states):
         if not free[i]:
             continue
         alone = np.count_nonzero(powers, axis=1) == 1
         higher = alone & (powers[:, i] >= 3)
-        if np.any(higher & (powers[:, i] % 2 == 1)):
+        odd = np.any(higher & (powers[:, i] % 2 == 1))
+        if odd:
             series, spring = higher, (2, 1)
             k = powers[series, i].astype(float)
             centre = np.mean(states[:, i])
@@ -271,13 +272,12 @@ def cosine_terms(regressor, states):
             row[i] = code
             if not np.any(np.all(powers == row, axis=1)):
                 powers, values = np.vstack([powers, row]), np.append(values, 0.0)
-            if code > 0:
-                squares.append(row.tolist())
-        if spring == (2,):
-            settled.append(squares[-1])
+            (springs if code > 0 else settled).append(row.tolist())
+        if not odd:  # offered with and without, an even series' q_i**2 is settled
+            settled.append(springs[-1])
     if not swapped.any():
         return None
-    return (mixed | swapped).tolist(), powers.tolist(), squares, settled
+    return (mixed | swapped).tolist(), powers.tolist(), springs, settled
 
 
 def harmonic_terms(regressor):
@@ -376,11 +376,9 @@ def offer_cosine_law(records, finalists, choice, spaces, layouts, folds, traject
     space = spaces[chosen["space"]]
     substitute = cosine_terms(chosen["fitted"], np.concatenate(split_times(trajectories, dt)[1]))
     if substitute is not None:
-        mixed, terms, squares, settled = substitute
+        mixed, terms, springs, substituted = substitute
         space = {**space, "mixed": mixed}
-        offers = [terms, [row for row in terms if row not in squares]]
-        # Each row of squares is q_i**2 or q_i alone; cos q_i is code -1 there.
-        substituted = settled + [[-1 if code else 0 for code in row] for row in squares]
+        offers = [terms, [row for row in terms if row not in springs]]
     elif (harmonic := harmonic_terms(chosen["fitted"])) is not None:
         offers, substituted = [harmonic[0]], harmonic[1]
     else:
