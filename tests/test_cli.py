@@ -1241,6 +1241,20 @@ def test_spikes_are_named_and_left_out(tmp_path, capsys):
     assert "one level of the learned energy" not in out
 
 
+def test_readings_moved_off_at_the_ends_of_records_are_named(tmp_path, capsys):
+    X = make_trajectories(single_pendulum(), 200, 40, dt=0.01, noise=0.02, random_state=0)
+    X[70, 0, 1] -= 0.4  # about 30 noise levels, where the spike screen extrapolates
+    X[90, 40, 1] += 0.4
+    path = tmp_path / "moved.npz"
+    np.savez(path, trajectories=X)
+    status, out, _ = run([str(path), "--dt", "0.01", "--quick", "--no-resample", "--output",
+                          str(tmp_path / "out")], capsys)
+    assert status == 0
+    assert "as spikes" not in out
+    assert re.search(r"^note: the trajectory fit left out 2 samples, .*: 70, 90$", out,
+                     flags=re.M), out
+
+
 @pytest.mark.slow
 def test_one_record_is_said_to_pin_the_law_on_one_energy_level_only(tmp_path, capsys):
     # One time-stamped record (the time column reaches the check too); the

@@ -7,6 +7,7 @@ import pytest
 
 from sk_hamiltonian import DerivativeTransformer, HamiltonianRegressor
 from sk_hamiltonian._trajectory_fit import FlowModel, TrajectoryFitError, fit_trajectories
+from sk_hamiltonian._trajectory_fit.outliers import OUTLIER_SDS, isolated_outliers
 from sk_hamiltonian.datasets import damped_pendulum, make_trajectories, single_pendulum
 from sk_hamiltonian.inspection import hamiltonian_terms
 from sk_hamiltonian.model_selection._refine import refine_on_trajectories
@@ -299,3 +300,69 @@ def test_fits_weighed_at_the_same_states_minimise_the_same_cost():
     _, reference = misfit([2.0, 3.0])
     together = [misfit(start, reference["states"])[0] for start in ([1.7, 3.4], [2.4, 2.6])]
     assert together[0] == pytest.approx(together[1], rel=1e-7)
+
+
+def test_isolated_outliers_are_samples_alone_far_above_the_residuals():
+    rng = np.random.default_rng(0)
+    residuals = rng.standard_normal((200, 41, 2))
+    mask = np.ones((200, 41), dtype=bool)
+    scale = np.ones(2)
+    assert not isolated_outliers([residuals], [residuals], [mask], scale)[0].any()
+    moved = residuals.copy()
+    moved[3, 0, 1] += 30.0   # a first sample, where the spike screen extrapolates
+    moved[7, 40, 0] -= 30.0  # a last one
+    moved[9, 20] += 30.0     # one inside, in both variables
+    # A model that is wrong somewhere is wrong along a stretch: the
+    # neighbours' residuals are as large, and none of it is left out.
+    moved[12, 10:16, 0] += 30.0
+    # Nor is a sample left out where the fit weighs it as nothing.
+    moved[15, 5] += 30.0
+    mask[15, 5] = False
+    far = isolated_outliers([moved], [moved], [mask], scale)[0]
+    np.testing.assert_array_equal(np.argwhere(far), [[3, 0], [7, 40], [9, 20]])
+
+
+def test_isolated_outliers_leave_a_round_off_residual_and_a_trajectory_the_model_misses():
+    rng = np.random.default_rng(1)
+    residuals = 1e-12 * rng.standard_normal((50, 41, 2))
+    residuals[4, 10, 0] = 1e-9  # 1 000 spreads above the rest, but round-off of exact data
+    mask = np.ones((50, 41), dtype=bool)
+    assert not isolated_outliers([residuals], [residuals], [mask], np.ones(2))[0].any()
+    residuals = rng.standard_normal((50, 41, 2))
+    residuals[6, ::4, 1] += 50.0  # every fourth sample: too many to be readings moved off
+    assert not isolated_outliers([residuals], [residuals], [mask], np.ones(2))[0].any()
+
+
+def test_the_trajectory_fit_leaves_out_readings_moved_far_off_and_says_which():
+    model, Y = harmonic_oscillator(np.linspace(0, 2, 21))
+    rng = np.random.default_rng(2)
+    noisy = Y + 0.01 * rng.standard_normal(Y.shape)
+    moved = noisy.copy()
+    moved[0, 0, 0] += 0.5   # 50 noise levels, at a record's first sample
+    moved[2, 20, 1] -= 0.5  # and at another's last
+    steps = [np.full(10, 0.01)] * 20
+    kept = fit_trajectories(model, np.array([1.5, 3.5]), [(noisy, steps)])
+    plain = fit_trajectories(model, np.array([1.5, 3.5]), [(moved, steps)])
+    robust = fit_trajectories(model, np.array([1.5, 3.5]), [(moved, steps)],
+                              leave_out_outliers=True)
+    np.testing.assert_array_equal(np.argwhere(robust["outliers"][0]), [[0, 0], [2, 20]])
+    assert not plain["outliers"][0].any()
+    # The two readings pull the plain fit away from the fit without them;
+    # left out, the coefficients are those of the data without the two samples.
+    assert np.max(np.abs(plain["theta"] - kept["theta"])) > 10 * np.max(
+        np.abs(robust["theta"] - kept["theta"]))
+    np.testing.assert_allclose(robust["theta"], [2.0, 3.0], rtol=0.02)
+
+
+def test_isolated_outliers_leave_the_zero_crossings_of_relative_noise():
+    # Weights 1 / (0.2 |x|) at states that cross zero: where |x| is below the
+    # fit's own error, that error stands many weighted spreads out, but not
+    # out of the residuals themselves.
+    rng = np.random.default_rng(3)
+    x = np.sin(np.linspace(0, 3, 41) + rng.uniform(0, 6, (200, 1)))[..., None]
+    residuals = 0.2 * np.abs(x) * rng.standard_normal(x.shape) + 1e-3 * rng.standard_normal(
+        x.shape)
+    weighted = residuals / (0.2 * np.maximum(np.abs(x), 1e-4))
+    mask = np.ones((200, 41), dtype=bool)
+    assert np.max(np.abs(weighted)) > OUTLIER_SDS * 1.4826 * np.median(np.abs(weighted))
+    assert not isolated_outliers([residuals], [weighted], [mask], np.ones(1))[0].any()

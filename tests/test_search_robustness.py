@@ -101,6 +101,25 @@ def test_spikes_are_named_left_out_and_the_law_found():
     assert terms(search) == ["cos(q)", "p^2"]
 
 
+def test_readings_moved_off_at_the_ends_of_records_are_left_out_by_the_trajectory_fit():
+    # At a record's first or last sample the spike screen extrapolates from
+    # one side, where 0.4 rad (about 30 noise levels) passes for noise; the
+    # fitted trajectories pass by the neighbours, and the sample stands out.
+    X = make_trajectories(single_pendulum(), 150, 40, dt=0.01, noise=0.02, random_state=0)
+    X[5, 10] = 1e6  # a spike: trajectory 5 is cut there, its second piece starts at 11
+    X[5, 40, 1] += 0.4
+    X[70, 0, 1] -= 0.4
+    X[90, 40, 1] += 0.4
+    with pytest.warns(OutlierWarning, match=r"trajectory fit left out 3 samples of "
+                                            r"trajectories \[5, 70, 90\]"):
+        search = small_search(0.01, denoise_degrees=(5,), degrees=(4,),
+                              fit_on=("derivatives", "weak")).fit(X)
+    assert search.preparation_["left_out"] == {5: [10]}
+    assert search.refinement_["status"] == "refined"
+    assert search.refinement_["outliers"] == {5: [40], 70: [0], 90: [40]}
+    assert terms(search) == ["cos(q)", "p^2"]
+
+
 def test_a_refinement_that_explains_held_out_data_worse_is_rejected_with_its_reason():
     # The held-out trajectories are of the pendulum, the training ones of a
     # pendulum under half the gravity, and the least-squares start knows the

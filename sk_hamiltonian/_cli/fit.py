@@ -54,7 +54,7 @@ def run(args):
         # it with the command's option.
         check_resamples(args.resamples, len(data.X), model._n_terms(len(names)))
         raise
-    refinement = _refine_chosen(result, model, resample_time is not None, names)
+    refinement = _refine_chosen(result, model, resample_time is not None, names, data.ids)
     intervals = (resample_time is not None
                  or getattr(model, "coef_covariance_", None) is not None)
     print(f"learned: {format_hamiltonian(model, state_names=names, intervals=intervals)}")
@@ -158,13 +158,13 @@ def _prepare_output(directory):
         ) from None
 
 
-def _refine_chosen(result, model, refitted, names):
+def _refine_chosen(result, model, refitted, names, ids):
     """The search's refinement of ``model``'s coefficients, said (and applied again after a refit).
 
     The resampling refits the chosen regressor by least squares; the
     search's refinement on the raw trajectories is then applied to it once
     more (``refitted``). Returns the refinement's outcome (None when the
-    search made none).
+    search made none). ``ids`` name the trajectories.
     """
     if result.refine is None and result.refinement is None:
         return None
@@ -194,6 +194,14 @@ def _refine_chosen(result, model, refitted, names):
         f"trajectories (output error, {counted(info['n_iter'], 'iteration')}); largest "
         f"change {100 * info['change']:.2g}%{checked}"
     )
+    left = info.get("outliers") or {}
+    if left:
+        named = [ids[k] for k in left]
+        print(f"note: the trajectory fit left out "
+              f"{counted(sum(len(v) for v in left.values()), 'sample')}, each alone far beyond "
+              f"its residuals (a reading moved off, at a record's end where the spike screen "
+              f"cannot tell it from noise): {', '.join(named[:10])}"
+              + (f" and {len(named) - 10} more" if len(named) > 10 else ""))
     if info["noise"] is not None:
         parts = [f"{name} {np.sqrt(a):.2g} + {100 * np.sqrt(b):.2g}%"
                  for name, (a, b) in zip(names, info["noise"])]

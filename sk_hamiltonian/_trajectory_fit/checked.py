@@ -55,16 +55,31 @@ def segment_duration(regressor):
 def segmented(regressor, times, states, indices=None):
     """The trajectories ``indices`` cut for ``regressor`` (:func:`~.segments.shooting_segments`), grouped.
 
-    Returns the groups of :func:`~.segments.group_by_times` and each group's
-    owners (positions in ``indices``).
+    Returns the groups of :func:`~.segments.group_by_times`, each group's
+    owners (positions in ``indices``) and where each of its segments starts
+    in its trajectory (a sample index).
     """
     indices = np.arange(len(times)) if indices is None else indices
     times, states = [times[k] for k in indices], [states[k] for k in indices]
     rates = growth_rates(regressor._jacobian, states)
     seg_times, seg_states, owner = shooting_segments(times, states, segment_duration(regressor),
                                                      rates)
+    # Segments come in their trajectory's order, contiguous.
+    lengths = np.array([len(t) for t in seg_times], dtype=np.intp)
+    ends = np.cumsum(lengths)
+    first = np.searchsorted(owner, owner)  # owner is sorted: each trajectory's first segment
+    starts = ends - lengths - (ends - lengths)[first]
     groups, members = group_by_times(seg_times, seg_states, regressor._default_step("rk4"))
-    return groups, [owner[m] for m in members]
+    return groups, [owner[m] for m in members], [starts[m] for m in members]
+
+
+def _samples_left_out(outliers, owners, starts):
+    """The samples the fit left out: trajectory (position) to sorted sample indices."""
+    left = {}
+    for far, owner, start in zip(outliers, owners, starts):
+        for row, j in zip(*np.nonzero(far)):
+            left.setdefault(int(owner[row]), []).append(int(start[row] + j))
+    return {k: sorted(v) for k, v in sorted(left.items())}
 
 
 def _per_trajectory(values, owners, n):
@@ -120,7 +135,9 @@ def refine(regressor, trajectories, dt, *, least_squares=None, held_out=None):
         :func:`~.covariance.parameter_covariance` with the scores clustered
         by trajectory (by segment with fewer than :data:`MIN_CLUSTERS`
         trajectories): the sandwich, each variance at least the
-        model-based one.
+        model-based one; ``outliers``, the samples the fit left out
+        (:mod:`.outliers`), each trajectory's index in ``trajectories`` to
+        its sample indices (empty for none).
     """
     info = _refine(regressor, trajectories, dt, least_squares, held_out)
     _set_outcome(regressor, info)
@@ -153,10 +170,10 @@ def _refine(regressor, trajectories, dt, least_squares, held_out):
             return dict(status=f"kept: {check.pop('verdict')}", check=check)
         check.pop("verdict")
     try:
-        groups, owners = segmented(regressor, times, states)
+        groups, owners, starts = segmented(regressor, times, states)
         with np.errstate(all="ignore"):
             result = fit_trajectories(terms.model, terms.start, groups, bound=bound,
-                                      first_noise=bound)
+                                      first_noise=bound, leave_out_outliers=True)
     except TrajectoryFitError as error:
         return dict(status=f"kept: {error}", check=check)
     if not np.all(np.isfinite(result["theta"])):
@@ -165,7 +182,8 @@ def _refine(regressor, trajectories, dt, least_squares, held_out):
         return dict(status=f"kept: the trajectory fit did not converge in {result['n_iter']} "
                            f"iterations", check=check)
     change = terms.apply(regressor, result["theta"])
-    n_obs = _per_trajectory([mask.sum(axis=1) * Y.shape[2] for Y, _, mask in groups], owners,
+    n_obs = _per_trajectory([(mask.sum(axis=1) - far.sum(axis=1)) * Y.shape[2]
+                             for (Y, _, mask), far in zip(groups, result["outliers"])], owners,
                             len(times))
     misfit = np.sqrt(_per_trajectory(result["misfit"], owners, len(times)) / n_obs)
     segment_owner = np.concatenate(owners)
@@ -177,7 +195,8 @@ def _refine(regressor, trajectories, dt, least_squares, held_out):
                 converged=result["converged"], noise=result["noise"],
                 noise_source=result["noise_source"], rms=result["rms"], misfit=misfit,
                 n_segments=sum(len(Y) for Y, _, _ in groups), change=change,
-                covariance=terms.fitting_covariance(covariance, len(regressor.coef_)))
+                covariance=terms.fitting_covariance(covariance, len(regressor.coef_)),
+                outliers=_samples_left_out(result["outliers"], owners, starts))
     if check is not None:
         info["check"] = check
     return info
@@ -200,13 +219,14 @@ def _held_out_check(least_squares, held_out, times, states, bound):
         if terms.reason is not None:
             continue  # nothing to refine on this part: both fits are the same
         try:
-            groups, _ = segmented(fitted, times, states, train)
+            groups, _, _ = segmented(fitted, times, states, train)
             with np.errstate(all="ignore"):
                 # One fit weighted by the data's own noise model: the check
                 # asks whether fitting these terms to trajectories generalises,
                 # not for the last digits of the estimate.
                 result = fit_trajectories(terms.model, terms.start, groups, bound=bound,
-                                          n_reweights=0, first_noise=bound)
+                                          n_reweights=0, first_noise=bound,
+                                          leave_out_outliers=True)
         except TrajectoryFitError as error:
             return dict(verdict=f"on part of the data, {error}", misfit=None, n_trajectories=0)
         if not np.all(np.isfinite(result["theta"])):
@@ -214,7 +234,7 @@ def _held_out_check(least_squares, held_out, times, states, bound):
                         misfit=None, n_trajectories=0)
         noise = bound
         try:
-            groups, owners = segmented(fitted, times, states, test)
+            groups, owners, _ = segmented(fitted, times, states, test)
         except TrajectoryFitError as error:
             return dict(verdict=str(error), misfit=None, n_trajectories=0)
         with np.errstate(all="ignore"):

@@ -38,6 +38,7 @@ import numpy as np
 from .._structure import apply_structure
 from .covariance import information
 from .noise import mean_variance, noise_weights, residual_noise_model
+from .outliers import isolated_outliers
 
 # Levenberg-Marquardt: iterations per (re)weighted fit, the relative decrease
 # of the cost below which it stops, and Marquardt's lambda beyond which no step
@@ -51,6 +52,8 @@ HELD_OUT_RTOL = 1e-4
 HELD_OUT_MAX_ITER = 10
 # Fits with weights from the previous fit's residuals, after the first one.
 N_REWEIGHTS = 2
+# Fits after the last that left out outliers, at most (each leaves out the next worst).
+MAX_OUTLIER_FITS = 2
 # A noise model fitted to the residuals is used only where its variance stays
 # below this many times the variance the data themselves show (the noise
 # model ``bound`` of :func:`fit_trajectories`, estimated without any model):
@@ -243,7 +246,8 @@ def _observed_scale(groups):
 
 
 def fit_trajectories(model, theta, groups, *, bound=None, max_iter=MAX_ITER,
-                     n_reweights=N_REWEIGHTS, first_noise=None, weight_states=None):
+                     n_reweights=N_REWEIGHTS, first_noise=None, weight_states=None,
+                     leave_out_outliers=False):
     """Output-error coefficients of ``model`` on observed trajectories.
 
     The first fit is weighted by ``first_noise`` (unweighted without it);
@@ -283,6 +287,11 @@ def fit_trajectories(model, theta, groups, *, bound=None, max_iter=MAX_ITER,
         shape of its ``Y`` (say, another fit's ``states``): fits of several
         models weighed at the same states minimise the same cost, and their
         misfits can be compared. None: at the states simulated from the start.
+    leave_out_outliers : bool, default=False
+        After each fit, leave out the samples that stand alone far above its
+        residuals (:func:`~.outliers.isolated_outliers`) and, where the last
+        fit left some out, fit once more (at most :data:`MAX_OUTLIER_FITS`
+        more), reweighted when ``n_reweights`` is positive.
 
     Returns
     -------
@@ -298,7 +307,9 @@ def fit_trajectories(model, theta, groups, *, bound=None, max_iter=MAX_ITER,
         each trajectory's weighted sum of squared residuals under ``noise``
         (one array per group; with an honest noise model, about the number
         of its observations); ``states``, the fitted trajectories (one array
-        per group).
+        per group); ``outliers``, the samples left out (one boolean array
+        per group of the shape of its mask; none without
+        ``leave_out_outliers``).
 
     Raises
     ------
@@ -320,8 +331,10 @@ def fit_trajectories(model, theta, groups, *, bound=None, max_iter=MAX_ITER,
         noise, source = first_noise, "data"
         _weigh(groups, [run[0] for run in runs] if weight_states is None else weight_states,
                noise, scale)
-    for round_ in range(n_reweights + 1):
-        if round_:
+    outliers = [np.zeros_like(g.mask) for g in groups]
+    n_fits, round_ = n_reweights + 1, 0
+    while round_ < n_fits:
+        if round_ and n_reweights:
             # The states do not depend on the weights: the last fit's serve.
             states = [run[0] for run in runs]
             noise, source = _noise_model(model, groups, states, converged, bound)
@@ -329,13 +342,29 @@ def fit_trajectories(model, theta, groups, *, bound=None, max_iter=MAX_ITER,
         theta, x0s, runs, used, converged = _levenberg_marquardt(
             model, theta, x0s, runs, groups, max_iter)
         n_iter += used
+        round_ += 1
+        if leave_out_outliers and _leave_out(model, groups, runs, outliers, scale):
+            n_fits = max(n_fits, min(round_ + 1, n_reweights + 1 + MAX_OUTLIER_FITS))
     residuals = [g.valid(model.wrap_difference(g.Y - run[0])) for g, run in zip(groups, runs)]
     rms = np.sqrt(np.mean(np.concatenate(residuals) ** 2, axis=0))
     matrix, scores = information(model, groups, runs)
     return dict(theta=theta, x0=x0s, n_iter=n_iter, converged=converged, noise=noise,
                 noise_source=source, rms=rms,
                 misfit=[g.misfit(model, run[0]) for g, run in zip(groups, runs)],
-                states=[run[0] for run in runs], information=matrix, scores=scores)
+                states=[run[0] for run in runs], information=matrix, scores=scores,
+                outliers=outliers)
+
+
+def _leave_out(model, groups, runs, outliers, scale):
+    """Leave out the isolated outliers of the last fit (:mod:`.outliers`); whether any."""
+    raw = [model.wrap_difference(g.Y - run[0]) for g, run in zip(groups, runs)]
+    found = isolated_outliers(raw, [g.residuals(model, run[0]) for g, run in zip(groups, runs)],
+                              [g.mask for g in groups], scale)
+    for g, far, left in zip(groups, found, outliers):
+        g.mask = g.mask & ~far
+        g.W = g.W * g.mask[..., None]
+        left |= far
+    return any(far.any() for far in found)
 
 
 def fit_initial_states(model, thetas, groups, noise, *, max_iter=HELD_OUT_MAX_ITER):

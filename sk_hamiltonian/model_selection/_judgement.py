@@ -78,7 +78,7 @@ def judge_supports(models, trajectories, dt, noise):
     # One segmentation for every model (the first's: the rollout scores'
     # choice), so that their fits differ only by their terms.
     try:
-        groups, _ = segmented(models[0], times, states)
+        groups, _, _ = segmented(models[0], times, states)
     except TrajectoryFitError:
         return dict(bic=None, rss=None, n_terms=None, n_observations=0, best=None)
     n_obs = sum(int(mask.sum()) * Y.shape[2] for Y, _, mask in groups)

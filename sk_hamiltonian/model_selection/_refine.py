@@ -11,7 +11,11 @@ import warnings
 import numpy as np
 from sklearn.base import clone
 
+from .._outliers import listed
 from .._trajectory_fit import refine
+from .._trajectory_fit.outliers import OUTLIER_SDS
+from .._warnings import warn
+from ..exceptions import OutlierWarning
 from ._fold_problems import take
 
 # The held-out check holds out every other fold of the search from the second
@@ -55,8 +59,12 @@ def check_parts(folds):
     return [np.concatenate(held_out)] if held_out else []
 
 
-def refine_chosen(pipeline, X, trajectories, dt, folds):
+def refine_chosen(pipeline, X, trajectories, dt, folds, origin=None):
     """Stage 4: refine the refitted ``pipeline``'s regressor, checked on the search's folds.
+
+    Samples the trajectory fit leaves out (``info["outliers"]``) are numbered
+    as in the user's data through ``origin`` and named in an
+    :class:`~sk_hamiltonian.OutlierWarning`.
 
     Parameters
     ----------
@@ -69,6 +77,9 @@ def refine_chosen(pipeline, X, trajectories, dt, folds):
     dt : float or None
     folds : list of ndarray of int
         The search's held-out folds.
+    origin : ndarray of int of shape (len(trajectories), 3), default=None
+        Where each trajectory comes from: the user's trajectory, its first
+        sample and its stop; None: the user's trajectories themselves.
 
     Returns
     -------
@@ -79,5 +90,36 @@ def refine_chosen(pipeline, X, trajectories, dt, folds):
             warnings.simplefilter("ignore")
             return clone(pipeline).fit(take(X, indices))[-1]
 
-    return refine_on_trajectories(pipeline[-1], trajectories, dt, least_squares=least_squares,
+    info = refine_on_trajectories(pipeline[-1], trajectories, dt, least_squares=least_squares,
                                   held_out=check_parts(folds))
+    if info.get("outliers"):
+        info["outliers"] = _in_users_numbers(info["outliers"], origin)
+        _warn_left_out(info["outliers"])
+    return info
+
+
+def _in_users_numbers(left_out, origin):
+    """``left_out`` (piece to sample indices) as the user's trajectory to sample indices."""
+    if origin is None:
+        return left_out
+    users = {}
+    for piece, samples in left_out.items():
+        k, start, _ = (int(v) for v in origin[piece])
+        users.setdefault(k, []).extend(start + j for j in samples)
+    return {k: sorted(v) for k, v in sorted(users.items())}
+
+
+def _warn_left_out(left_out):
+    n = sum(len(v) for v in left_out.values())
+    warn(
+        OutlierWarning(
+            f"HamiltonianSearchCV: the trajectory fit left out {n} sample"
+            f"{'' if n == 1 else 's'} of trajectories {listed(left_out)} (numbered as in X), "
+            f"each alone beyond {OUTLIER_SDS:g} times the spread of its residuals: readings "
+            f"moved far off, most often at a record's first or last samples, where the "
+            f"search's spike screen cannot tell them from noise. refinement_['outliers'] "
+            f"lists them.",
+            trajectories=list(left_out),
+        ),
+        OutlierWarning,
+    )

@@ -486,7 +486,7 @@ class HamiltonianSearchCV(BaseEstimator):
         if self.refine == "trajectories":
             self._say("refine: the chosen model's coefficients on the raw trajectories")
             self.refinement_ = refine_chosen(self.best_estimator_, X_columns, trajectories,
-                                             self.dt, folds)
+                                             self.dt, folds, prepared.origin)
             self._say(f"refine: {self.refinement_['status']}")
         self.preparation_["one_level"] = warn_one_level(self.best_estimator_[-1], X_columns,
                                                         self.dt)
