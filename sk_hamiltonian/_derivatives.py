@@ -17,7 +17,12 @@ from ._differentiation import (
     windowed_irregular,
     windowed_uniform,
 )
-from ._trajectories import check_n_states, check_trajectories, pack_derivatives
+from ._trajectories import (
+    check_n_states,
+    check_time_stamps,
+    check_trajectories,
+    pack_derivatives,
+)
 from ._outliers import MIN_TRAJECTORIES, NUMBERING, listed, robust_limit
 from ._warnings import warn
 from .exceptions import OutlierWarning, SmoothingWarning
@@ -409,17 +414,8 @@ class DerivativeTransformer(TransformerMixin, BaseEstimator):
                 f"uniformly sampled states, e.g. DerivativeTransformer(dt=0.01), or "
                 f"prepend the time stamps as the first column."
             )
-        times = [T[:, 0] for T in trajectories]
-        for k, t in enumerate(times):
-            steps = np.diff(t)
-            if np.any(steps <= 0):
-                i = int(np.flatnonzero(steps <= 0)[0])
-                raise ValueError(
-                    f"X[{k}]: the time stamps (first column, as dt=None) must be strictly "
-                    f"increasing; sample {i + 1} has t={float(t[i + 1])!r} after "
-                    f"t={float(t[i])!r}. Sort the samples and drop repeated times."
-                )
-        return times, [T[:, 1:] for T in trajectories]
+        check_time_stamps(trajectories)
+        return [T[:, 0] for T in trajectories], [T[:, 1:] for T in trajectories]
 
     def set_output(self, *, transform=None):
         """Refuse DataFrame output: the derivative layout is 3-D (or ragged).

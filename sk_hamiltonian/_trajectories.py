@@ -35,6 +35,30 @@ def layout_width(n_states):
     return 1 + 3 * n_states
 
 
+def check_time_stamps(trajectories):
+    """Raise unless each trajectory's first column (its time stamps) strictly increases.
+
+    Parameters
+    ----------
+    trajectories : list of ndarray of shape (n_times_k, 1 + n_states)
+
+    Raises
+    ------
+    ValueError
+        Naming the first trajectory and sample where time does not increase.
+    """
+    for k, T in enumerate(trajectories):
+        t = T[:, 0]
+        steps = np.diff(t)
+        if np.any(steps <= 0):
+            i = int(np.flatnonzero(steps <= 0)[0])
+            raise ValueError(
+                f"X[{k}]: the time stamps (first column, as dt=None) must be strictly "
+                f"increasing; sample {i + 1} has t={float(t[i + 1])!r} after "
+                f"t={float(t[i])!r}. Sort the samples and drop repeated times."
+            )
+
+
 def check_trajectories(X, *, name="X", min_times=1):
     """Validate trajectories and return them as a list of float arrays.
 

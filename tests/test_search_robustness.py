@@ -120,6 +120,20 @@ def test_readings_moved_off_at_the_ends_of_records_are_left_out_by_the_trajector
     assert terms(search) == ["cos(q)", "p^2"]
 
 
+def test_time_stamps_that_do_not_increase_are_refused_before_anything_reads_them():
+    X = make_trajectories(single_pendulum(), 20, 40, dt=0.01, noise=0.02, random_state=0)
+    t = 0.01 * np.arange(41)
+    t[10] = t[9]
+    T = np.concatenate([np.broadcast_to(t[None, :, None], (20, 41, 1)), X], axis=2)
+    # The spike screen once divided by the repeated step first, with a
+    # RuntimeWarning before the error.
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(ValueError, match=r"X\[0\]: the time stamps .* strictly "
+                                             r"increasing; sample 10"):
+            HamiltonianSearchCV().fit(T)
+
+
 def test_a_refinement_that_explains_held_out_data_worse_is_rejected_with_its_reason():
     # The held-out trajectories are of the pendulum, the training ones of a
     # pendulum under half the gravity, and the least-squares start knows the

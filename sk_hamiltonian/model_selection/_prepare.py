@@ -37,6 +37,7 @@ from sklearn.model_selection import GroupKFold, check_cv
 
 from .._outliers import listed
 from .._spikes import find_spikes
+from .._trajectories import check_time_stamps
 from .._trajectory_fit import difference_noise_model
 from .._trajectory_fit.noise import mean_variance
 from .._warnings import warn
@@ -111,9 +112,12 @@ def prepare(trajectories, dt, cv, groups):
     Raises
     ------
     ValueError
-        If the data are too few for the folds even cut into segments.
+        If the data are too few for the folds even cut into segments, or
+        (``dt`` None) a trajectory's time stamps do not strictly increase.
     """
     offset = 1 if dt is None else 0
+    if dt is None:  # before the spike screen reads them
+        check_time_stamps(trajectories)
     states = [T[:, offset:] for T in trajectories]
     report = dict(left_out={}, dropped={}, duplicates={}, segments=None, noise=None,
                   clean=False)
