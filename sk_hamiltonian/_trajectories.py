@@ -86,11 +86,11 @@ def check_trajectories(X, *, name="X", min_times=1):
         array = np.asarray(X)
         if array.ndim != 3:
             hint = (
-                f" If these are one trajectory T of shape (n_times, n_features), pass "
-                f"T[np.newaxis] or [T]; if they are states at which to evaluate a fitted "
-                f"pipeline's learned vector field, call its last step directly, "
-                f"pipe[-1].predict(states) (the pipeline's first step expects "
-                f"trajectories)." if array.ndim == 2 else ""
+                " If these are one trajectory T of shape (n_times, n_features), pass "
+                "T[np.newaxis] or [T]; if they are states at which to evaluate a fitted "
+                "pipeline's learned vector field, call its last step directly, "
+                "pipe[-1].predict(states) (the pipeline's first step expects "
+                "trajectories)." if array.ndim == 2 else ""
             )
             raise ValueError(
                 f"{name} must be a 3-D array (n_trajectories, n_times, n_features) "
