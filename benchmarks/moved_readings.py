@@ -8,8 +8,9 @@ Per case: how many moved samples the search's preparation leaves out as
 spikes, how many the trajectory fit leaves out (``refinement_["outliers"]``)
 and how many other samples either leaves out; the error at ``T = 20`` of
 the default search, of the same search with ``refine=None``, and of the
-default search on the records before the readings were moved. BLAS on one
-thread::
+default search on the records before the readings were moved; and the
+largest relative error of the two coefficients, in the same order. BLAS on
+one thread::
 
     python benchmarks/moved_readings.py
     python benchmarks/moved_readings.py --seeds 0 --levels 30
@@ -30,7 +31,7 @@ from threadpoolctl import threadpool_limits  # noqa: E402
 from sk_hamiltonian.model_selection import HamiltonianSearchCV  # noqa: E402
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from robustness_study import model_error, scene_data  # noqa: E402
+from robustness_study import coefficient_error, model_error, scene_data  # noqa: E402
 
 FRACTION = 0.01
 NOISE = 0.02
@@ -67,7 +68,9 @@ def main():
     args = parser.parse_args()
     for seed in args.seeds:
         _, _, X = scene_data("pendulum", "many", "add2", seed)
-        clean = model_error(search(X).best_estimator_[-1], "pendulum", False)
+        unmoved = search(X).best_estimator_[-1]
+        clean = model_error(unmoved, "pendulum", False)
+        clean_coef = coefficient_error(unmoved, "pendulum")
         for level in args.levels:
             Y, which = moved(X, level, seed)
             default = search(Y)
@@ -76,10 +79,12 @@ def main():
             fit = marked(default.refinement_.get("outliers"), which.shape)
             errors = [model_error(s.best_estimator_[-1], "pendulum", False)
                       for s in (default, plain)]
+            coefs = [coefficient_error(s.best_estimator_[-1], "pendulum") for s in (default, plain)]
             print(f"seed {seed}  moved by {level:g}  {which.sum()} moved: {np.sum(screen & which)} "
                   f"left out as spikes, {np.sum(fit & which)} by the trajectory fit, "
                   f"{np.sum(~which & (screen | fit))} others  error {errors[0]:.3g}  "
-                  f"refine=None {errors[1]:.3g}  unmoved {clean:.3g}", flush=True)
+                  f"refine=None {errors[1]:.3g}  unmoved {clean:.3g}  coefficients "
+                  f"{coefs[0]:.2g}, {coefs[1]:.2g}, {clean_coef:.2g}", flush=True)
 
 
 if __name__ == "__main__":

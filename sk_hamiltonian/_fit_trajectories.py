@@ -12,6 +12,8 @@ noise model ``noise_``, each trajectory's misfit in its units
 ``trajectory_misfit_`` and the covariance ``coef_covariance_`` of
 ``coef_`` (then ``damping_``), from which the intervals of the printed
 coefficients come (:func:`~sk_hamiltonian.inspection.term_intervals`).
+Samples the trajectory fit leaves out are named in an
+:class:`~sk_hamiltonian.OutlierWarning`.
 """
 
 import warnings
@@ -21,6 +23,7 @@ from sklearn.base import clone
 
 from ._trajectories import is_trajectory_container, unpack_derivatives
 from ._trajectory_fit import refine
+from ._trajectory_fit.outliers import warn_left_out
 
 # Trajectories the held-out check needs: each half holds out at least two.
 MIN_CHECKED = 4
@@ -64,4 +67,8 @@ def fit_on_trajectories(estimator, X):
             warnings.simplefilter("ignore")
             return clone(estimator).set_params(fit_on="derivatives", n_resamples=0).fit(part)
 
-    return refine(estimator, trajectories, None, least_squares=least_squares, held_out=held_out)
+    info = refine(estimator, trajectories, None, least_squares=least_squares,
+                  held_out=held_out)
+    if info.get("outliers"):
+        warn_left_out(type(estimator).__name__, info["outliers"])
+    return info

@@ -4,8 +4,9 @@ import warnings
 
 import numpy as np
 import pytest
+from sklearn.pipeline import make_pipeline
 
-from sk_hamiltonian import DerivativeTransformer, HamiltonianRegressor
+from sk_hamiltonian import DerivativeTransformer, HamiltonianRegressor, OutlierWarning
 from sk_hamiltonian._trajectory_fit import FlowModel, TrajectoryFitError, fit_trajectories
 from sk_hamiltonian._trajectory_fit.outliers import OUTLIER_SDS, isolated_outliers
 from sk_hamiltonian.datasets import damped_pendulum, make_trajectories, single_pendulum
@@ -366,3 +367,17 @@ def test_isolated_outliers_leave_the_zero_crossings_of_relative_noise():
     mask = np.ones((200, 41), dtype=bool)
     assert np.max(np.abs(weighted)) > OUTLIER_SDS * 1.4826 * np.median(np.abs(weighted))
     assert not isolated_outliers([residuals], [weighted], [mask], np.ones(1))[0].any()
+
+
+def test_a_regressor_fitted_on_trajectories_names_the_readings_it_left_out():
+    X = make_trajectories(single_pendulum(), 60, 40, dt=0.01, noise=0.02, random_state=0)
+    X[7, 0, 1] -= 0.4  # about 30 noise levels
+    X[21, 40, 1] += 0.4
+    pipe = make_pipeline(DerivativeTransformer(dt=0.01, degree=5),
+                         HamiltonianRegressor(degree=4, periodic=[False, True],
+                                              momentum_degree=2, threshold=0.03,
+                                              fit_on="trajectories"))
+    with pytest.warns(OutlierWarning, match=r"left out 2 samples of trajectories \[7, 21\].*"
+                                            r"By trajectory: \{7: \[0\], 21: \[40\]\}"):
+        pipe.fit(X)
+    assert pipe[-1].trajectory_fit_status_ == "refined"

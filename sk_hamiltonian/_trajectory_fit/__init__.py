@@ -4,8 +4,9 @@
 Levenberg-Marquardt with the initial states eliminated, reweighting by a noise
 model); :mod:`.noise` the noise models; :mod:`.segments` how records are cut
 and grouped for it; :mod:`.terms` the kept terms of a fitted regressor as its
-parameters; :mod:`.covariance` the precision of the fit; :mod:`.checked` the fit of a regressor accepted only where
-held-out data agree, shared by the search's last stage.
+parameters; :mod:`.covariance` the precision of the fit; :mod:`.outliers` the
+samples it leaves out; :mod:`.checked` the fit of a regressor accepted only
+where held-out data agree, shared by the search's last stage.
 """
 
 from .checked import refine, segment_duration, segmented

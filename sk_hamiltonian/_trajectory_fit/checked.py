@@ -20,6 +20,10 @@ fitted on:
 3. accepted, the kept terms are fitted to all the trajectories, starting
    from the least-squares coefficients; a fit that does not converge is not
    used either.
+
+The training fits of both steps leave out the samples that stand alone far
+off their fitted trajectories (:mod:`.outliers`); the result names those of
+the last (``outliers``).
 """
 
 import numpy as np

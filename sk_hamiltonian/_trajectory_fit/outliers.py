@@ -31,7 +31,9 @@ Measured on the robustness study's pendulum at 2 % noise (500 x 41, ``dt = 0.01`
 
 import numpy as np
 
-from .._outliers import MAD_TO_STD
+from .._outliers import MAD_TO_STD, listed
+from .._warnings import warn
+from ..exceptions import OutlierWarning
 
 # A sample is left out beyond this many spreads of the residuals ...
 OUTLIER_SDS = 10.0
@@ -79,3 +81,33 @@ def isolated_outliers(residuals, weighted, masks, scale):
         far[far.sum(axis=1) > MAX_FRACTION * mask.sum(axis=1)] = False
         out.append(far)
     return out
+
+
+def warn_left_out(who, left_out, where=None):
+    """An :class:`~sk_hamiltonian.OutlierWarning` naming the samples the fit left out.
+
+    Parameters
+    ----------
+    who : str
+        The estimator's name, first in the message.
+    left_out : dict
+        Trajectory (numbered as in the user's ``X``) to sample indices.
+    where : str, default=None
+        The attribute that lists them; None: the message lists them (the
+        first ten trajectories).
+    """
+    n = sum(len(v) for v in left_out.values())
+    shown = dict(list(left_out.items())[:10])
+    listing = (f"{where} lists them" if where is not None else
+               f"By trajectory: {shown}" + (" and more" if len(shown) < len(left_out) else ""))
+    warn(
+        OutlierWarning(
+            f"{who}: the trajectory fit left out {n} sample{'' if n == 1 else 's'} of "
+            f"trajectories {listed(left_out)} (numbered as in X), each alone beyond "
+            f"{OUTLIER_SDS:g} times the spread of its residuals: readings moved far off, most "
+            f"often at a record's first or last samples, where a spike screen cannot tell them "
+            f"from noise. {listing}.",
+            trajectories=list(left_out),
+        ),
+        OutlierWarning,
+    )

@@ -11,11 +11,8 @@ import warnings
 import numpy as np
 from sklearn.base import clone
 
-from .._outliers import listed
 from .._trajectory_fit import refine
-from .._trajectory_fit.outliers import OUTLIER_SDS
-from .._warnings import warn
-from ..exceptions import OutlierWarning
+from .._trajectory_fit.outliers import warn_left_out
 from ._fold_problems import take
 
 # The held-out check holds out every other fold of the search from the second
@@ -94,7 +91,7 @@ def refine_chosen(pipeline, X, trajectories, dt, folds, origin=None):
                                   held_out=check_parts(folds))
     if info.get("outliers"):
         info["outliers"] = _in_users_numbers(info["outliers"], origin)
-        _warn_left_out(info["outliers"])
+        warn_left_out("HamiltonianSearchCV", info["outliers"], "refinement_['outliers']")
     return info
 
 
@@ -108,18 +105,3 @@ def _in_users_numbers(left_out, origin):
         users.setdefault(k, []).extend(start + j for j in samples)
     return {k: sorted(v) for k, v in sorted(users.items())}
 
-
-def _warn_left_out(left_out):
-    n = sum(len(v) for v in left_out.values())
-    warn(
-        OutlierWarning(
-            f"HamiltonianSearchCV: the trajectory fit left out {n} sample"
-            f"{'' if n == 1 else 's'} of trajectories {listed(left_out)} (numbered as in X), "
-            f"each alone beyond {OUTLIER_SDS:g} times the spread of its residuals: readings "
-            f"moved far off, most often at a record's first or last samples, where the "
-            f"search's spike screen cannot tell them from noise. refinement_['outliers'] "
-            f"lists them.",
-            trajectories=list(left_out),
-        ),
-        OutlierWarning,
-    )

@@ -107,17 +107,17 @@ class HamiltonianSearchCV(BaseEstimator):
        in their place (with and without ``q**2``; stage ``"cosine"``, taken at one
        standard error, then pruned); last, against each other space's best finalist.
     4. **Refine** (``refine="trajectories"``) the chosen model, refitted on
-       all the data: the coefficients of its kept terms are fitted to the
-       raw trajectories themselves, each simulated from an initial state of
-       its own (long records in equal segments of at most two periods of the
-       model, shorter where its instability requires), weighted by a noise model
-       ``a_i + b_i x_i^2`` per variable (the output-error estimate). The
-       result is first checked on data it was not fitted on: with every
-       other fold from the second held out (two of five), the least-squares
-       pick and its trajectory fit, both fitted on the other folds, are
-       compared on the held-out trajectories; the refinement is kept only
-       where it explains them as well (within 0.5 %) and its fit on all the
-       data converges, else the least-squares coefficients stay and
+       all the data: the coefficients of its kept terms are fitted to the raw
+       trajectories, each simulated from an initial state of its own (long
+       records in segments of at most two periods of the model, shorter where
+       it is unstable), weighted by a noise model ``a_i + b_i x_i^2`` per
+       variable (output error); a sample alone far off the fitted trajectory
+       is left out and named in an ``OutlierWarning``. The result is checked
+       first on every other fold from the second: the least-squares pick and
+       its trajectory fit, both fitted on the other folds, are compared on
+       the held-out trajectories; the refinement is kept only where it
+       explains them as well (within 0.5 %) and its fit on all the data
+       converges, else the least-squares coefficients stay and
        ``refinement_`` says why.
 
     Parameters
@@ -260,14 +260,14 @@ class HamiltonianSearchCV(BaseEstimator):
         ``"kept: "`` and why the least-squares coefficients were kept);
         ``check``, the held-out check's misfits (least squares, trajectory
         fit), their difference ``gain`` and its standard error ``gain_se``;
-        and when refined ``n_terms``, ``n_iter`` (Levenberg-Marquardt
+        when refined ``n_terms``, ``n_iter`` (Levenberg-Marquardt
         iterations), ``converged``, ``noise`` (the variance model's ``(a_i,
-        b_i)`` per variable) and ``noise_source`` (``"residuals"``, or
-        ``"data"`` where the residuals' own could not be trusted), ``rms``
-        (the root-mean-square residual per variable), ``misfit`` (each
-        trajectory's root-mean-square residual in units of the noise model),
-        ``n_segments`` and ``change`` (the largest relative change of a kept
-        coefficient).
+        b_i)`` per variable), ``noise_source`` (``"residuals"``, or ``"data"``
+        where the residuals' own could not be trusted), ``rms`` (the RMS
+        residual per variable), ``misfit`` (each trajectory's RMS residual in
+        units of the noise model), ``n_segments``, ``change`` (the largest
+        relative change of a kept coefficient) and ``outliers`` (the samples
+        the fit left out, numbered as in ``X``; empty for none).
     preparation_ : dict
         Stage 0's outcome: ``left_out`` (each trajectory's samples left out
         as spikes, numbered as in ``X``), ``dropped`` (trajectories left out
