@@ -32,7 +32,8 @@ def multistep_errors(model, Xt, n_steps=None, *, stride=1, substeps=ROLLOUT_SUBS
     its single rollout: with ``n_steps`` at least the number of intervals, the
     two coincide. Predictions on uniform grids of one step are integrated in
     one batch whatever their lengths (see :func:`shared_grids`), each over its
-    own time stamps only.
+    own time stamps only, and those on irregular stamps of one length side by
+    side (:func:`integrate_own_grids`).
 
     Parameters
     ----------
@@ -124,30 +125,125 @@ def predict_segments(model, starts, rel_times, substeps=ROLLOUT_SUBSTEPS):
     integrator = model._integrator()
     predictions = [None] * len(starts)
     failed = np.zeros(len(starts), dtype=bool)
-    for members in shared_grids(rel_times):
-        lengths = np.array([rel_times[i].shape[0] for i in members])
-        # The longest member's time stamps; the others are its prefixes.
-        grid = rel_times[members[int(np.argmax(lengths))]]
+    batches, own = shared_grids(rel_times), []
+    if integrator.name in ("rk4", "avf"):
+        batches, own = _own_grids(batches, rel_times)
+
+    def largest_step(grid):
         # `substeps` RK4 steps per typical interval (on a uniform grid, per
         # interval): irregular stamps do not make every interval pay for the
         # shortest one.
         if integrator.name != "rk4":
-            max_step = model._default_step(integrator.name)
-        elif substeps is None:
+            return model._default_step(integrator.name)
+        if substeps is None:
             # The step `simulate` takes by default (a tenth of the learned
             # system's time scale), but at least one per interval: accurate
             # far below the model error, and cheapest where the sampling is
             # fine.
-            max_step = min(model._default_step("rk4"), np.median(np.diff(grid)))
-        else:
-            max_step = np.median(np.diff(grid)) / substeps
+            return min(model._default_step("rk4"), np.median(np.diff(grid)))
+        return np.median(np.diff(grid)) / substeps
+
+    for members in batches:
+        lengths = np.array([rel_times[i].shape[0] for i in members])
+        # The longest member's time stamps; the others are its prefixes.
+        grid = rel_times[members[int(np.argmax(lengths))]]
         Y, failed_early = integrate_prefixes(
-            integrator, np.stack([starts[i] for i in members]), grid, lengths, max_step
+            integrator, np.stack([starts[i] for i in members]), grid, lengths,
+            largest_step(grid)
         )
         for row, i in enumerate(members):
             predictions[i] = Y[row, : lengths[row]]
         failed[np.asarray(members)[failed_early]] = True
+    for members in own:
+        grids = np.stack([rel_times[i] for i in members])
+        Y, failed_early = integrate_own_grids(
+            integrator, np.stack([starts[i] for i in members]), grids,
+            np.array([largest_step(grid) for grid in grids])
+        )
+        predictions_of = dict(zip(members, Y))
+        for i in members:
+            predictions[i] = predictions_of[i]
+        failed[np.asarray(members)[failed_early]] = True
     return predictions, failed
+
+
+def _own_grids(batches, rel_times):
+    """The batches of :func:`shared_grids`, those on irregular stamps of one length merged.
+
+    Records time-stamped by a lab clock rarely share their stamps: alone,
+    each is integrated by itself, and the steps' overhead, not the
+    arithmetic, sets the time (ten times the search's on a uniform grid).
+    Merged, each member steps over its own intervals side by side with the
+    others (:func:`integrate_own_grids`). Returns the batches left as they
+    are and the merged ones.
+    """
+    kept, irregular = [], {}
+    for members in batches:
+        rel = rel_times[members[0]]
+        steps = np.diff(rel)
+        if np.ptp(steps) <= GRID_TOLERANCE * rel[-1]:
+            kept.append(members)
+        else:
+            irregular.setdefault(rel.shape[0], []).append(members)
+    own = []
+    for merged in irregular.values():
+        if len(merged) == 1:
+            kept.append(merged[0])
+        else:
+            own.append([i for members in merged for i in members])
+    return kept, own
+
+
+def integrate_own_grids(integrator, y0, grids, max_steps):
+    """Integrate a batch side by side, each initial state over time stamps of its own.
+
+    Each member takes the steps :func:`~._integrate.integrate` takes for it
+    alone: each of its intervals cut into the fewest equal steps no longer
+    than its own ``max_steps``. The members that need a step at once take it
+    together. A member whose state becomes non-finite is frozen at its last
+    finite state from there on, as :func:`~._integrate.integrate` does.
+
+    Parameters
+    ----------
+    integrator : FixedStepIntegrator
+        A method whose step takes one step size per member (RK4, AVF).
+    y0 : ndarray of shape (n_members, n_states)
+        Initial states, at each member's first time stamp.
+    grids : ndarray of shape (n_members, n_times)
+        Each member's strictly increasing time stamps.
+    max_steps : ndarray of shape (n_members,)
+        Each member's largest step.
+
+    Returns
+    -------
+    Y : ndarray of shape (n_members, n_times, n_states)
+        Each member's solution at its time stamps.
+    failed : ndarray of shape (n_members,) of bool
+        Whether a member became non-finite before its last time.
+    """
+    wrap = integrator.dynamics.wrap or (lambda y: y)
+    y = wrap(np.array(y0, dtype=float))
+    n_members, n_times = grids.shape
+    Y = np.empty((n_members, n_times, y.shape[1]))
+    Y[:, 0] = y
+    failed = np.zeros(n_members, dtype=bool)
+    active = np.arange(n_members)
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        for k in range(n_times - 1):
+            if active.size:
+                interval = grids[active, k + 1] - grids[active, k]
+                n_sub = np.maximum(1, np.ceil(interval / max_steps[active] - 1e-9)).astype(int)
+                h = (interval / n_sub)[:, None]
+                y_active = y[active]
+                for j in range(int(n_sub.max())):
+                    going = n_sub > j
+                    y_active[going] = integrator.step(y_active[going], h[going])
+                finite = np.isfinite(y_active).all(axis=1)
+                failed[active[~finite]] = True
+                active, y_active = active[finite], y_active[finite]
+                y[active] = wrap(y_active)
+            Y[:, k + 1] = y
+    return Y, failed
 
 
 def shared_grids(rel_times):

@@ -16,7 +16,12 @@ from sk_hamiltonian import (
     unpack_derivatives,
 )
 from sk_hamiltonian._integrate import RK4, integrate
-from sk_hamiltonian._scoring import integrate_prefixes, shared_grids
+from sk_hamiltonian._scoring import (
+    _own_grids,
+    integrate_own_grids,
+    integrate_prefixes,
+    shared_grids,
+)
 from sk_hamiltonian.datasets import (
     HamiltonianSystem,
     henon_heiles,
@@ -482,6 +487,41 @@ def test_ragged_rollouts_share_one_batch_and_match_rollouts_one_by_one(clean_pen
     together = multistep_errors(pipe[-1], Xt, n_steps=6)
     alone = np.concatenate([multistep_errors(pipe[-1], [T], n_steps=6) for T in Xt])
     np.testing.assert_allclose(together, alone, rtol=1e-12)
+
+
+@pytest.mark.parametrize("method", ["rk4", "avf"])
+def test_irregular_stamps_integrate_side_by_side_as_each_would_alone(clean_pendulum_fit,
+                                                                     method):
+    # A lab clock's stamps: no two records share them. Side by side, each
+    # takes the steps it would take alone (a step fit's AVF included, whose
+    # map is the step it was fitted at).
+    _, pipe = clean_pendulum_fit
+    integrator = pipe[-1]._integrator(method)
+    rng = np.random.default_rng(0)
+    grids = np.cumsum(0.05 * (1 + 0.4 * rng.uniform(-1, 1, (6, 12))), axis=1)
+    grids -= grids[:, :1]
+    y0 = rng.uniform(-1, 1, (6, 2))
+    max_steps = np.full(6, 0.02)
+    Y, failed = integrate_own_grids(integrator, y0, grids, max_steps)
+    assert not failed.any()
+    for row in range(6):
+        alone, _ = integrate(integrator, y0[row:row + 1], grids[row], 0.02)
+        np.testing.assert_allclose(Y[row], alone[:, 0], rtol=1e-12, atol=1e-14)
+
+
+def test_rollouts_on_irregular_stamps_share_a_batch_and_match_rollouts_one_by_one(
+        clean_pendulum_fit):
+    X, pipe = clean_pendulum_fit
+    rng = np.random.default_rng(1)
+    t = np.cumsum(0.05 * (1 + 0.3 * rng.uniform(-1, 1, (20, X.shape[1]))), axis=1)
+    stamped = [np.column_stack([tk - tk[0], T]) for tk, T in zip(t, X[40:])]
+    Xt = DerivativeTransformer(method="finite_difference").fit_transform(stamped)
+    rel = [tk - tk[0] for tk in unpack_derivatives(Xt).times]
+    batches, own = _own_grids(shared_grids(rel), rel)
+    assert batches == [] and own == [list(range(20))]
+    together = multistep_errors(pipe[-1], Xt)
+    alone = np.concatenate([multistep_errors(pipe[-1], [T]) for T in Xt])
+    np.testing.assert_allclose(together, alone, rtol=1e-10)
 
 
 def test_different_steps_or_irregular_stamps_do_not_share_a_batch():

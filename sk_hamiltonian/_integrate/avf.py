@@ -92,9 +92,12 @@ class AveragedVectorField(FixedStepIntegrator):
 
     def _step_impl(self, y, h):
         n_features = y.shape[1]
+        # One step size, or one per state (an array of shape (n_states, 1)).
+        per_state = np.ndim(h) > 0
         with np.errstate(all="ignore"):
             newton_matrix = np.linalg.inv(
-                np.eye(n_features) - (0.5 * h) * self.dynamics.jacobian(y)
+                np.eye(n_features)
+                - (0.5 * (h[:, :, None] if per_state else h)) * self.dynamics.jacobian(y)
             )
         # Linearly implicit predictor (one Newton step from y, with the matrix
         # already at hand): O(h**3) off the solution where explicit Euler is
@@ -106,7 +109,8 @@ class AveragedVectorField(FixedStepIntegrator):
         previous = np.full(y.shape[0], np.inf)
         for _ in range(self.max_iter):
             todo = ~converged
-            residual = y1[todo] - y[todo] - h * self._averaged_field(y[todo], y1[todo])
+            residual = y1[todo] - y[todo] - (h[todo] if per_state else h) * self._averaged_field(
+                y[todo], y1[todo])
             delta = np.einsum("bij,bj->bi", newton_matrix[todo], residual)
             y1[todo] -= delta
             size = np.abs(delta).max(axis=1)

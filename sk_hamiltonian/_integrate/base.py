@@ -93,8 +93,8 @@ class FixedStepIntegrator:
         ----------
         y : ndarray of shape (n_states, n_features)
             Current states.
-        h : float
-            Step size.
+        h : float or ndarray of shape (n_states, 1)
+            Step size, or one per state (RK4 and the averaged vector field).
 
         Returns
         -------
@@ -103,7 +103,8 @@ class FixedStepIntegrator:
             solve that did not converge) are NaN, which :func:`integrate`
             reports as a failure of that trajectory.
         """
-        return self._step_impl(np.asarray(y, dtype=float), float(h))
+        h = np.asarray(h, dtype=float) if np.ndim(h) else float(h)
+        return self._step_impl(np.asarray(y, dtype=float), h)
 
     def _step_impl(self, y, h):
         raise NotImplementedError
