@@ -502,11 +502,14 @@ def test_irregular_stamps_integrate_side_by_side_as_each_would_alone(clean_pendu
     grids -= grids[:, :1]
     y0 = rng.uniform(-1, 1, (6, 2))
     max_steps = np.full(6, 0.02)
+    grids[0, 8:] = grids[0, 7]  # a member that ends at its eighth time waits there
     Y, failed = integrate_own_grids(integrator, y0, grids, max_steps)
     assert not failed.any()
     for row in range(6):
-        alone, _ = integrate(integrator, y0[row:row + 1], grids[row], 0.02)
-        np.testing.assert_allclose(Y[row], alone[:, 0], rtol=1e-12, atol=1e-14)
+        n = 8 if row == 0 else 12
+        alone, _ = integrate(integrator, y0[row:row + 1], grids[row, :n], 0.02)
+        np.testing.assert_allclose(Y[row, :n], alone[:, 0], rtol=1e-12, atol=1e-14)
+    np.testing.assert_array_equal(Y[0, 8:], np.broadcast_to(Y[0, 7], (4, 2)))
 
 
 def test_rollouts_on_irregular_stamps_share_a_batch_and_match_rollouts_one_by_one(
@@ -514,7 +517,9 @@ def test_rollouts_on_irregular_stamps_share_a_batch_and_match_rollouts_one_by_on
     X, pipe = clean_pendulum_fit
     rng = np.random.default_rng(1)
     t = np.cumsum(0.05 * (1 + 0.3 * rng.uniform(-1, 1, (20, X.shape[1]))), axis=1)
-    stamped = [np.column_stack([tk - tk[0], T]) for tk, T in zip(t, X[40:])]
+    # Ragged too: records of 12 to 21 samples.
+    stamped = [np.column_stack([tk - tk[0], T])[: 12 + k % 10]
+               for k, (tk, T) in enumerate(zip(t, X[40:]))]
     Xt = DerivativeTransformer(method="finite_difference").fit_transform(stamped)
     rel = [tk - tk[0] for tk in unpack_derivatives(Xt).times]
     batches, own = _own_grids(shared_grids(rel), rel)
