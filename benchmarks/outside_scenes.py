@@ -13,10 +13,15 @@ a simulation fails). CPU seconds of the search, BLAS on one thread::
     python benchmarks/outside_scenes.py --scenes softening --seeds 11 12
     python benchmarks/outside_scenes.py --scenes exponential --by-hand
     python benchmarks/outside_scenes.py --scenes small_angles --splits 5
+    python benchmarks/outside_scenes.py --scenes small_angles --stamps
 
 With ``--splits N``, each case is also searched with ``cv=KFold(5,
 shuffle=True, random_state=r)`` for ``r = 1 .. N`` (rows marked ``split r``),
 and a last line per case says whether every split kept the same terms.
+
+With ``--stamps``, each record is sampled at times of its own: its steps
+``dt`` times a uniform factor in ``[0.6, 1.4]``, the time stamps in the
+first column and the search given ``dt=None`` (a lab clock's stamps).
 
 With ``--by-hand``, the scenes whose law is in none of the spaces are also
 fitted as the paper does, by a polynomial of one degree (8, then 10) on
@@ -49,6 +54,17 @@ The scenes (``p`` the momentum, ``q`` the position):
   chart its law is ``cos q, q^2, q`` and its Taylor series holds odd powers;
 * ``harmonics``: ``p^2/2 - cos q - cos(2 q)/2``, two harmonics, below
   ``H = 0.3`` (angles within 1.4 rad);
+* ``offset``: a hardening spring about ``q = 2``, ``p^2/2 + (q - 2)^2/2 +
+  (q - 2)^4/4`` below ``H = 0.8``: in the data's chart its law is ``q, q^2,
+  q^3, q^4``;
+* ``stiff``: ``2 p^2 + 8 q^2 + 2 q^4`` (a mass of 1/4, a period of 0.8),
+  ``dt = 0.01``, below ``H = 0.6``;
+* ``separatrix``: the paper's pendulum below ``H = 14``, librations and
+  rotations over the top (the separatrix at ``9.8``), ``dt = 0.02``;
+* ``kinetic_coupling``: ``(p1^2 + p2^2)/2 + 0.3 p1 p2 + q1^2/2 + q2^2``, momenta
+  coupled in the kinetic energy, below ``H = 1``;
+* ``quartic_coupling``: ``(p1^2 + p2^2)/2 + (q1^2 + q2^2)/2 + q1^2 q2^2/2`` below
+  ``H = 1``;
 * ``morse``: ``p^2/2 + (1 - exp(-q))^2`` below ``H = 0.5``, in none of the spaces;
 * ``exponential``: the paper's ``exp(-p^2 - 1.1 q^4)``, in none of the spaces.
 """
@@ -78,7 +94,9 @@ from robustness_study import noise_of  # noqa: E402
 from search_study import T_END, model_error  # noqa: E402
 
 SHAPES = {"many": (200, 41), "few": (5, 801), "one": (1, 4001), "four": (4, 1001),
-          "one3": (1, 3001), "two": (2, 2001)}
+          "one3": (1, 3001), "two": (2, 2001), "three": (3, 1501), "twenty": (20, 201)}
+# Each step of a record sampled by --stamps: dt times a factor within this of 1.
+JITTER = 0.4
 
 
 def one_degree(name, potential, force, box, law):
@@ -124,6 +142,33 @@ def anisotropic():
             {"p1^2", "p2^2", "q1^2", "q2^2", "q1*q2"})
 
 
+def two_degrees(name, hamiltonian, gradient, law):
+    """A system of ``(p1, p2, q1, q2)``; ``gradient`` returns the four partial derivatives."""
+    def h(X):
+        X = np.asarray(X, dtype=float)
+        return hamiltonian(*(X[..., i] for i in range(4)))
+
+    def g(X):
+        X = np.asarray(X, dtype=float)
+        return np.stack(gradient(*(X[..., i] for i in range(4))), axis=-1)
+
+    return (HamiltonianSystem(name, h, g, domain=[[-1.2, 1.2]] * 4,
+                              initial_state=[0.3, 0.2, 0.5, 0.1]), law)
+
+
+def stiff():
+    def hamiltonian(X):
+        X = np.asarray(X, dtype=float)
+        return 2 * X[..., 0] ** 2 + 8 * X[..., 1] ** 2 + 2 * X[..., 1] ** 4
+
+    def gradient(X):
+        X = np.asarray(X, dtype=float)
+        return np.stack([4 * X[..., 0], 16 * X[..., 1] + 8 * X[..., 1] ** 3], axis=-1)
+
+    return (HamiltonianSystem("stiff", hamiltonian, gradient, domain=[[-2.5, 2.5], [-0.6, 0.6]],
+                              initial_state=[0.3, 0.2]), {"p^2", "q^2", "q^4"})
+
+
 # name: (system and its terms, energy bound, dt, cases as (shape, noise) pairs)
 SCENES = {
     "small_angles": ((single_pendulum(), {"p^2", "cos(q)"}), 5.0, 0.02,
@@ -160,6 +205,27 @@ SCENES = {
                              lambda q: np.sin(q) + np.sin(2 * q), [[-3, 3], [-np.pi, np.pi]],
                              {"p^2", "cos(q)", "cos(2 q)"}), 0.3, 0.05,
                   [("many", "add2"), ("few", "add2"), ("many", "mult2")]),
+    "offset": (one_degree("offset", lambda q: (q - 2) ** 2 / 2 + (q - 2) ** 4 / 4,
+                          lambda q: (q - 2) + (q - 2) ** 3, [[-1.5, 1.5], [0.5, 3.5]],
+                          {"p^2", "q", "q^2", "q^3", "q^4"}), 0.8, 0.05,
+               [("many", "add2"), ("few", "add2"), ("two", "add2"), ("four", "add2"),
+                ("many", "mult2"), ("one", "add2")]),
+    "stiff": (stiff(), 0.6, 0.01, [("many", "add2"), ("one", "add2")]),
+    "separatrix": (one_degree("separatrix", lambda q: -9.8 * np.cos(q), lambda q: 9.8 * np.sin(q),
+                              [[-7, 7], [-np.pi, np.pi]], {"p^2", "cos(q)"}), 14.0, 0.02,
+                   [("many", "add2")]),
+    "kinetic_coupling": (two_degrees(
+        "kinetic_coupling",
+        lambda p1, p2, q1, q2: (p1**2 + p2**2) / 2 + 0.3 * p1 * p2 + q1**2 / 2 + q2**2,
+        lambda p1, p2, q1, q2: (p1 + 0.3 * p2, p2 + 0.3 * p1, q1, 2 * q2),
+        {"p1^2", "p2^2", "p1*p2", "q1^2", "q2^2"}), 1.0, 0.05,
+        [("many", "add2"), ("few", "add2"), ("three", "add2")]),
+    "quartic_coupling": (two_degrees(
+        "quartic_coupling",
+        lambda p1, p2, q1, q2: (p1**2 + p2**2) / 2 + (q1**2 + q2**2) / 2 + q1**2 * q2**2 / 2,
+        lambda p1, p2, q1, q2: (p1, p2, q1 + q1 * q2**2, q2 + q1**2 * q2),
+        {"p1^2", "p2^2", "q1^2", "q2^2", "q1^2*q2^2"}), 1.0, 0.05,
+        [("many", "add2"), ("few", "add2"), ("twenty", "mult2")]),
     "morse": (one_degree("morse", lambda q: (1 - np.exp(-q)) ** 2,
                          lambda q: 2 * (1 - np.exp(-q)) * np.exp(-q),
                          [[-1, 1], [-0.5, 1.5]], None), 0.5, 0.05,
@@ -178,16 +244,24 @@ def states_below(system, energy, n, rng):
     return np.array(found[:n])
 
 
-def records(system, energy, dt, shape, noise, seed):
+def records(system, energy, dt, shape, noise, seed, stamps=False):
+    """Noisy records; with ``stamps``, each at times of its own, the times in the first column."""
     n, length = SHAPES[shape]
     rng = np.random.default_rng(seed)
-    X = system.solve(states_below(system, energy, n, rng), dt * np.arange(length),
-                     max_step=dt / 10)
+    x0 = states_below(system, energy, n, rng)
+    if stamps:
+        times = np.cumsum(dt * (1 + JITTER * rng.uniform(-1, 1, (n, length))), axis=1)
+        times -= times[:, :1]
+        X = np.stack([system.solve(x[None], t, max_step=dt / 10)[0] for x, t in zip(x0, times)])
+    else:
+        X = system.solve(x0, dt * np.arange(length), max_step=dt / 10)
     kind, level = noise_of(noise)
     if kind == "mult":
-        return X * (1 + level * rng.standard_normal(X.shape))
-    scale = np.sqrt(np.mean(X.reshape(-1, X.shape[-1]) ** 2, axis=0))
-    return X + level * scale * rng.standard_normal(X.shape)
+        X = X * (1 + level * rng.standard_normal(X.shape))
+    else:
+        scale = np.sqrt(np.mean(X.reshape(-1, X.shape[-1]) ** 2, axis=0))
+        X = X + level * scale * rng.standard_normal(X.shape)
+    return np.concatenate([times[..., None], X], axis=2) if stamps else X
 
 
 def fresh_error(model, system, energy):
@@ -214,15 +288,15 @@ def by_hand(system, energy, dt, X):
     return ", ".join(errors)
 
 
-def run(name, shape, noise, seed, hand=False, split=None):
+def run(name, shape, noise, seed, hand=False, split=None, stamps=False):
     """Search one case and print its row; returns the kept terms."""
     (system, law), energy, dt, _ = SCENES[name]
-    X = records(system, energy, dt, shape, noise, seed)
+    X = records(system, energy, dt, shape, noise, seed, stamps)
     cv = 5 if split is None else KFold(5, shuffle=True, random_state=split)
     start = time.process_time()
     with threadpool_limits(1), warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        search = HamiltonianSearchCV(dt=dt, cv=cv).fit(X)
+        search = HamiltonianSearchCV(dt=None if stamps else dt, cv=cv).fit(X)
     seconds = time.process_time() - start
     model = search.best_estimator_[-1]
     kept = {term.text for term in hamiltonian_terms(model)}
@@ -231,11 +305,11 @@ def run(name, shape, noise, seed, hand=False, split=None):
     verdict = "-" if judgement is None else (
         f"{judgement['kind']}, best {judgement['best']}"
         + (f", pruned {judgement['pruned']}" if judgement.get("pruned") else ""))
-    folds = "" if split is None else f"split {split}  "
+    folds = ("" if split is None else f"split {split}  ") + ("stamped  " if stamps else "")
     print(f"{name:12s} {shape:5s} {noise:6s} seed {seed:3d}  {folds}cpu {seconds:5.1f} s  "
           f"exact {exact:5s}  error {fresh_error(model, system, energy):.3g}  "
           f"[{verdict}]  {format_hamiltonian(model)}", flush=True)
-    if hand and law is None:
+    if hand and law is None and not stamps:
         print(f"{'':12s} by hand: {by_hand(system, energy, dt, X)}", flush=True)
     return kept
 
@@ -248,12 +322,14 @@ def main():
                         help="also polynomials of degree 8 and 10 where no space holds the law")
     parser.add_argument("--splits", type=int, default=0,
                         help="also search each case under this many shuffled 5-fold splits")
+    parser.add_argument("--stamps", action="store_true",
+                        help="records sampled at jittered times of their own (dt=None)")
     args = parser.parse_args()
     for name in args.scenes:
         for shape, noise in SCENES[name][3]:
             for seed in args.seeds:
-                laws = [run(name, shape, noise, seed, hand=args.by_hand)]
-                laws += [run(name, shape, noise, seed, split=r)
+                laws = [run(name, shape, noise, seed, hand=args.by_hand, stamps=args.stamps)]
+                laws += [run(name, shape, noise, seed, split=r, stamps=args.stamps)
                          for r in range(1, args.splits + 1)]
                 if args.splits:
                     same = all(kept == laws[0] for kept in laws)
