@@ -36,7 +36,7 @@ def layout_width(n_states):
 
 
 def check_time_stamps(trajectories):
-    """Raise unless each trajectory's first column (its time stamps) strictly increases.
+    """Raise unless each trajectory's first column (its time stamps) is finite and increases.
 
     Parameters
     ----------
@@ -45,10 +45,17 @@ def check_time_stamps(trajectories):
     Raises
     ------
     ValueError
-        Naming the first trajectory and sample where time does not increase.
+        Naming the first trajectory and sample where time is not finite or does
+        not strictly increase.
     """
     for k, T in enumerate(trajectories):
         t = T[:, 0]
+        if not np.isfinite(t).all():
+            i = int(np.flatnonzero(~np.isfinite(t))[0])
+            raise ValueError(
+                f"X[{k}]: the time stamps (first column, as dt=None) must be finite; sample "
+                f"{i} has t={float(t[i])!r}. Drop that sample, or give its time."
+            )
         steps = np.diff(t)
         if np.any(steps <= 0):
             i = int(np.flatnonzero(steps <= 0)[0])
@@ -59,7 +66,7 @@ def check_time_stamps(trajectories):
             )
 
 
-def check_trajectories(X, *, name="X", min_times=1):
+def check_trajectories(X, *, name="X", min_times=1, allow_missing=False):
     """Validate trajectories and return them as a list of float arrays.
 
     Parameters
@@ -70,6 +77,9 @@ def check_trajectories(X, *, name="X", min_times=1):
         Argument name used in error messages.
     min_times : int, default=1
         Fewest samples a trajectory may have.
+    allow_missing : bool, default=False
+        Whether NaN or infinite values may stand (missing readings, which the
+        caller leaves out); False raises a ValueError naming the trajectory.
 
     Returns
     -------
@@ -128,10 +138,10 @@ def check_trajectories(X, *, name="X", min_times=1):
             f"{which} has {lengths[shortest]} sample(s); at least {min_times} are required."
         )
     for k, T in enumerate(trajectories):
-        if not np.isfinite(T).all():
+        if not allow_missing and not np.isfinite(T).all():
             raise ValueError(
                 f"{name}[{k}] contains NaN or infinity; remove or interpolate those "
-                f"samples first."
+                f"samples first (HamiltonianSearchCV leaves them out itself)."
             )
     return trajectories, is_array
 

@@ -1241,6 +1241,28 @@ def test_spikes_are_named_and_left_out(tmp_path, capsys):
     assert "one level of the learned energy" not in out
 
 
+@pytest.mark.slow
+def test_missing_readings_are_left_out_and_named(tmp_path, capsys):
+    X = make_trajectories(single_pendulum(), 200, 40, dt=0.01, noise=0.02, random_state=0)
+    X[5, 10] = np.nan
+    X[17, 0, 1] = np.nan
+    X[30, 40, 0] = np.inf
+    path = tmp_path / "gaps.npz"
+    np.savez(path, trajectories=X)
+    status, out, _ = run([str(path), "--dt", "0.01", "--quick", "--no-resample", "--output",
+                          str(tmp_path / "out")], capsys)
+    assert status == 0
+    assert re.search(r"^note: 3 missing readings \(NaN or infinite\) in 3 trajectories: "
+                     r"5, 17, 30$", out, flags=re.M), out
+    learned = re.search(r"^learned: (.*)$", out, flags=re.M).group(1)
+    assert "cos(q)" in learned and "p^2" in learned
+    # The paper's grid takes complete records, and says how to go on.
+    error = error_of([str(path), "--dt", "0.01", "--paper-grid", "--output",
+                      str(tmp_path / "out2")], capsys)
+    assert "trajectories 5, 17, 30 hold missing readings" in error
+    assert "drop --paper-grid" in error
+
+
 def test_readings_moved_off_at_the_ends_of_records_are_named(tmp_path, capsys):
     X = make_trajectories(single_pendulum(), 200, 40, dt=0.01, noise=0.02, random_state=0)
     X[70, 0, 1] -= 0.4  # about 30 noise levels, where the spike screen extrapolates

@@ -101,6 +101,32 @@ def test_spikes_are_named_left_out_and_the_law_found():
     assert terms(search) == ["cos(q)", "p^2"]
 
 
+def test_missing_readings_are_left_out_like_spikes_and_named():
+    X = make_trajectories(single_pendulum(), 150, 40, dt=0.01, noise=0.02, random_state=0)
+    X[3, 10] = np.nan
+    X[7, 0, 1] = np.inf
+    X[9, 40, 0] = np.nan
+    X[11, 17] = 1e6  # and a spike
+    with pytest.warns(OutlierWarning, match=r"left out 4 samples of trajectories "
+                                            r"\[3, 7, 9, 11\] as spikes or missing readings "
+                                            r"\(3 NaN or infinite\)"):
+        search = small_search(0.01, denoise_degrees=(5,), degrees=(4,),
+                              fit_on=("derivatives", "weak")).fit(X)
+    assert search.preparation_["missing"] == {3: [10], 7: [0], 9: [40]}
+    assert search.preparation_["left_out"] == {3: [10], 7: [0], 9: [40], 11: [17]}
+    assert terms(search) == ["cos(q)", "p^2"]
+    assert np.isfinite(search.best_estimator_[-1].coef_).all()
+
+
+def test_time_stamps_that_are_not_finite_are_refused():
+    X = make_trajectories(single_pendulum(), 20, 40, dt=0.01, noise=0.02, random_state=0)
+    t = 0.01 * np.arange(41)
+    T = np.concatenate([np.broadcast_to(t[None, :, None], (20, 41, 1)), X], axis=2).copy()
+    T[4, 6, 0] = np.nan
+    with pytest.raises(ValueError, match=r"X\[4\]: the time stamps .* must be finite; sample 6"):
+        HamiltonianSearchCV().fit(T)
+
+
 def test_readings_moved_off_at_the_ends_of_records_are_left_out_by_the_trajectory_fit():
     # At a record's first or last sample the spike screen extrapolates from
     # one side, where 0.4 rad (about 30 noise levels) passes for noise; the

@@ -180,6 +180,18 @@ def _drop_short(X, ids, path):
     return X, [ids[k] for k in kept]
 
 
+def check_complete(args, data):
+    """Refuse missing readings where the command does not run the default search's preparation."""
+    broken = [label for label, T in zip(data.ids, data.X) if not np.isfinite(T).all()]
+    if broken:
+        option = "--paper-grid" if args.paper_grid else "--segment-length"
+        raise UsageError(
+            f"trajectories {', '.join(broken[:10])} hold missing readings (NaN or infinity): "
+            f"{option} takes complete records; drop {option} (the default search leaves such "
+            f"samples out and says which), or remove or interpolate them"
+        )
+
+
 def segment_if_needed(args, data):
     """Cut the trajectories into segments when they cannot fill the folds."""
     if len(data.X) >= args.cv:
@@ -218,7 +230,7 @@ def prepare_for_search(args, data):
     their folds, so that the command's search, resampling and refinement see
     what a Python user's search sees.
     """
-    trajectories, _ = check_trajectories(data.X, min_times=MIN_SAMPLES)
+    trajectories, _ = check_trajectories(data.X, min_times=MIN_SAMPLES, allow_missing=True)
     try:
         with warnings.catch_warnings():
             # What was left out is said below, in the command's words.
@@ -232,10 +244,16 @@ def prepare_for_search(args, data):
         names = [data.ids[k] for k in sorted(indices)]
         return ", ".join(names[:10]) + (f" and {len(names) - 10} more" if len(names) > 10 else "")
 
+    if report["missing"]:
+        n = sum(len(v) for v in report["missing"].values())
+        print(f"note: {counted(n, 'missing reading')} (NaN or infinite) in "
+              f"{counted(len(report['missing']), 'trajectory', 'trajectories')}: "
+              f"{named(report['missing'])}")
     if report["left_out"]:
         n = sum(len(v) for v in report["left_out"].values())
         print(f"note: left out {counted(n, 'sample')} of "
-              f"{counted(len(report['left_out']), 'trajectory', 'trajectories')} as spikes (far "
+              f"{counted(len(report['left_out']), 'trajectory', 'trajectories')} as spikes"
+              + (" or missing readings" if report["missing"] else "") + " (far "
               f"from their neighbours; each trajectory is cut there, and pieces of fewer than "
               f"{MIN_PIECE_SAMPLES} samples are left out with them): "
               f"{named(report['left_out'])}")

@@ -144,8 +144,8 @@ def _load_npz(path):
         X = np.concatenate([times.astype(float)[..., None], X], axis=2)
     stamped = X.shape[2] % 2 == 1
     _check_states(X.shape[2] - stamped, path)
-    if not np.isfinite(X).all():
-        raise UsageError(f"{path}: the trajectories contain NaN or infinity")
+    if stamped and not np.isfinite(X[..., 0]).all():
+        raise UsageError(f"{path}: the time stamps contain NaN or infinity")
     names = default_state_names(X.shape[2] - stamped)
     data = DataFile(X, names, [str(k) for k in range(X.shape[0])], stamped)
     if stamped:
@@ -197,8 +197,9 @@ def _load_csv(path):
         raise UsageError(f"{path}: the file has a header but no data rows")
     if data.shape[1] != len(names):
         raise UsageError(f"{path}: rows have {data.shape[1]} columns, the header {len(names)}")
-    if not np.isfinite(data).all():
-        raise UsageError(f"{path}: the data contain NaN or infinity")
+    # Missing readings (NaN) of the states are the search's to leave out.
+    if not np.isfinite(data[:, : 1 + stamped]).all():
+        raise UsageError(f"{path}: the trajectory ids or time stamps contain NaN or infinity")
     ids = data[:, 0]
     # Keep the order of first appearance; a trajectory's rows must be contiguous.
     starts = np.flatnonzero(np.r_[True, ids[1:] != ids[:-1]])

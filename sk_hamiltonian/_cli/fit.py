@@ -15,7 +15,7 @@ from .._vector_field import VectorFieldRegressor
 from ..exceptions import DomainWarning
 from ..inspection import format_hamiltonian
 from ..io import save
-from .data import load_data, prepare_for_search, segment_if_needed
+from .data import check_complete, load_data, prepare_for_search, segment_if_needed
 from .errors import UsageError, check_positive
 from .figure import draw_report
 from .outputs import OUTPUTS
@@ -32,6 +32,7 @@ def run(args):
     data = load_data(args)
     check_options(args)
     if args.paper_grid or args.segment_length is not None:
+        check_complete(args, data)
         data = segment_if_needed(args, data)
     else:
         data = prepare_for_search(args, data)

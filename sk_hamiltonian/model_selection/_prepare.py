@@ -7,9 +7,11 @@ law without being physics, and for what the folds need:
    left out, and its trajectory cut there into pieces
    (:func:`~sk_hamiltonian._spikes.find_spikes`: the cubic through its four
    nearest neighbours, ten noise levels off and three times above the
-   neighbours' own differences). Pieces shorter than
-   :data:`MIN_PIECE_SAMPLES` are left out too, and a trajectory with more than
-   :data:`MAX_SPIKE_FRACTION` of its samples marked is left out whole.
+   neighbours' own differences). A missing reading (a sample with a NaN or
+   infinite value) is left out alike, the spikes sought among the others.
+   Pieces shorter than :data:`MIN_PIECE_SAMPLES` are left out too, and a
+   trajectory with more than :data:`MAX_SPIKE_FRACTION` of its samples
+   marked is left out whole.
 2. **Duplicates.** A trajectory equal to an earlier one adds no information,
    only weight: it is left out.
 3. **Few long records.** With fewer than :data:`MIN_PER_FOLD` trajectories per
@@ -77,7 +79,9 @@ class Prepared:
     report : dict
         ``left_out`` (the user's trajectory index to the sample indices left
         out of it), ``dropped`` (trajectories left out whole, with why),
-        ``duplicates`` (index to the earlier trajectory it repeats),
+        ``missing`` (the user's trajectory index to its samples with a NaN or
+        infinite value, also in ``left_out``), ``duplicates`` (index to the
+        earlier trajectory it repeats),
         ``segments`` (None, or how records were cut), ``noise`` (the data's
         own noise model, ``(a_i, b_i)`` per variable, or None) and ``clean``.
     """
@@ -119,8 +123,8 @@ def prepare(trajectories, dt, cv, groups):
     if dt is None:  # before the spike screen reads them
         check_time_stamps(trajectories)
     states = [T[:, offset:] for T in trajectories]
-    report = dict(left_out={}, dropped={}, duplicates={}, segments=None, noise=None,
-                  clean=False)
+    report = dict(left_out={}, missing={}, dropped={}, duplicates={}, segments=None,
+                  noise=None, clean=False)
     pieces, origin = _without_spikes(trajectories, states, report)
     pieces, origin = _without_duplicates(pieces, origin, report)
     if not pieces:
@@ -148,7 +152,17 @@ def _without_spikes(trajectories, states, report):
     """Pieces of the trajectories between spikes, and where each comes from (``origin``)."""
     offset = trajectories[0].shape[1] - states[0].shape[1]
     times = [T[:, 0] if offset else np.arange(len(T), dtype=float) for T in trajectories]
-    flags = find_spikes(times, states)
+    # Spikes are sought among the readings that are there.
+    present = [np.isfinite(Y).all(axis=1) for Y in states]
+    found = find_spikes([t[m] for t, m in zip(times, present)],
+                        [Y[m] for Y, m in zip(states, present)])
+    flags = []
+    for k, (m, spikes) in enumerate(zip(present, found)):
+        flagged = ~m
+        flagged[m] = spikes
+        flags.append(flagged)
+        if not m.all():
+            report["missing"][k] = [int(j) for j in np.flatnonzero(~m)]
     pieces, origin = [], []
     for k, (T, flagged) in enumerate(zip(trajectories, flags)):
         if not flagged.any():
@@ -156,7 +170,8 @@ def _without_spikes(trajectories, states, report):
             origin.append((k, 0, len(T)))
             continue
         if flagged.mean() > MAX_SPIKE_FRACTION:
-            report["dropped"][k] = f"{flagged.sum()} of its {len(T)} samples are spikes"
+            report["dropped"][k] = (f"{flagged.sum()} of its {len(T)} samples are spikes or "
+                                    f"missing")
             continue
         left = list(np.flatnonzero(flagged))
         for start, stop in _pieces(flagged):
@@ -187,9 +202,12 @@ def _left_out_words(report):
     parts = []
     if report["left_out"]:
         n = sum(len(v) for v in report["left_out"].values())
-        parts.append(f"{n} samples of trajectories {listed(sorted(report['left_out']))} as spikes")
+        missing = sum(len(v) for k, v in report["missing"].items() if k in report["left_out"])
+        parts.append(f"{n} samples of trajectories {listed(sorted(report['left_out']))} as spikes"
+                     + (f" or missing readings ({missing} NaN or infinite)" if missing else ""))
     if report["dropped"]:
-        parts.append(f"trajectories {listed(sorted(report['dropped']))} whole, mostly spikes")
+        parts.append(f"trajectories {listed(sorted(report['dropped']))} whole, mostly spikes"
+                     + (" or missing readings" if report["missing"] else ""))
     if report["duplicates"]:
         parts.append(f"trajectories {listed(sorted(report['duplicates']))}, repeats of earlier "
                      f"ones")
@@ -205,8 +223,9 @@ def _warn_left_out(report, n_trajectories):
         OutlierWarning(
             f"HamiltonianSearchCV: of {n_trajectories} trajectories (numbered as in X), left "
             f"out {words}. Spikes are samples far from their neighbours (dropped readings); "
-            f"each trajectory is cut at them and the pieces fitted. The search's "
-            f"preparation_ lists every sample left out.",
+            f"each trajectory is cut at them"
+            + (" and at its missing readings" if report["missing"] else "")
+            + " and the pieces fitted. The search's preparation_ lists every sample left out.",
             trajectories=named,
         ),
         OutlierWarning,

@@ -63,7 +63,7 @@ class HamiltonianSearchCV(BaseEstimator):
     and a fourth on all the data:
 
     0. **Prepare** the data (``preparation_``): samples far from their
-       neighbours (spikes, dropped readings) are left out and their
+       neighbours (spikes) and missing ones (NaN) are left out and their
        trajectories cut there, repeated trajectories left out, both named in an
        :class:`~sk_hamiltonian.OutlierWarning` and in ``preparation_``; with
        fewer than two trajectories per fold, the records are cut into
@@ -269,10 +269,10 @@ class HamiltonianSearchCV(BaseEstimator):
         relative change of a kept coefficient) and ``outliers`` (the samples
         the fit left out, numbered as in ``X``; empty for none).
     preparation_ : dict
-        Stage 0's outcome: ``left_out`` (each trajectory's samples left out
-        as spikes, numbered as in ``X``), ``dropped`` (trajectories left out
-        whole), ``duplicates`` (each repeated trajectory and the one it
-        repeats), ``segments`` (None, or how few long records were cut),
+        Stage 0's outcome: ``left_out`` (each trajectory's samples left out,
+        numbered as in ``X``), ``missing`` (those that were NaN or infinite),
+        ``dropped`` (trajectories left out whole), ``duplicates`` (each repeat
+        and what it repeats), ``segments`` (None, or how records were cut),
         ``noise`` (the data's own noise model, ``(a_i, b_i)`` per variable),
         ``clean`` (whether the data look exact) and, after the refit,
         ``one_level`` (None, or ``span``, ``energy`` and ``message`` where
@@ -367,8 +367,8 @@ class HamiltonianSearchCV(BaseEstimator):
         Parameters
         ----------
         X : array-like of shape (n_trajectories, n_times, n_columns) or list of 2-D arrays
-            Raw trajectories, sampled every ``dt`` (``n_columns = 2d``) or
-            with their time stamps in the first column (``dt=None``).
+            Raw trajectories, sampled every ``dt`` (``n_columns = 2d``) or with
+            time stamps in the first column (``dt=None``); NaN readings left out.
         y : None
             Ignored.
         groups : array-like of shape (n_trajectories,), default=None
@@ -382,7 +382,7 @@ class HamiltonianSearchCV(BaseEstimator):
         """
         self._validate_params()
         start = time.perf_counter()
-        trajectories, _ = check_trajectories(X, min_times=3)
+        trajectories, _ = check_trajectories(X, min_times=3, allow_missing=True)
         n_states = trajectories[0].shape[1] - (1 if self.dt is None else 0)
         check_state_names(self.state_names, n_states,
                           order=f"{ORDER_WORDS[self.state_order]} first")
