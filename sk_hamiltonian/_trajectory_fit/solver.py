@@ -332,7 +332,7 @@ def fit_trajectories(model, theta, groups, *, bound=None, max_iter=MAX_ITER,
         _weigh(groups, [run[0] for run in runs] if weight_states is None else weight_states,
                noise, scale)
     outliers = [np.zeros_like(g.mask) for g in groups]
-    n_fits, round_ = n_reweights + 1, 0
+    n_fits, round_, most = n_reweights + 1, 0, n_reweights + 1 + MAX_OUTLIER_FITS
     while round_ < n_fits:
         if round_ and n_reweights:
             # The states do not depend on the weights: the last fit's serve.
@@ -343,8 +343,10 @@ def fit_trajectories(model, theta, groups, *, bound=None, max_iter=MAX_ITER,
             model, theta, x0s, runs, groups, max_iter)
         n_iter += used
         round_ += 1
-        if leave_out_outliers and _leave_out(model, groups, runs, outliers, scale):
-            n_fits = max(n_fits, min(round_ + 1, n_reweights + 1 + MAX_OUTLIER_FITS))
+        # Samples are left out only where a fit without them follows.
+        if leave_out_outliers and round_ < most and _leave_out(model, groups, runs, outliers,
+                                                                scale):
+            n_fits = max(n_fits, round_ + 1)
     residuals = [g.valid(model.wrap_difference(g.Y - run[0])) for g, run in zip(groups, runs)]
     rms = np.sqrt(np.mean(np.concatenate(residuals) ** 2, axis=0))
     matrix, scores = information(model, groups, runs)
