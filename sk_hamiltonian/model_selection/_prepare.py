@@ -117,7 +117,8 @@ def prepare(trajectories, dt, cv, groups):
     ------
     ValueError
         If the data are too few for the folds even cut into segments, or
-        (``dt`` None) a trajectory's time stamps do not strictly increase.
+        (``dt`` None) a trajectory's time stamps are not finite or do not
+        strictly increase.
     """
     offset = 1 if dt is None else 0
     if dt is None:  # before the spike screen reads them
