@@ -909,6 +909,18 @@ def test_a_ragged_or_non_numeric_csv_names_the_line(tmp_path, capsys, rows, mess
     assert message in line and "usecols" not in line
 
 
+def test_an_empty_csv_field_is_a_missing_reading_and_an_empty_id_is_refused(tmp_path, capsys):
+    path = tmp_path / "gaps.csv"
+    path.write_text("trajectory,t,p,q\n0,0,1,2\n0,0.1,,2.1\n0,0.2,1.2,nan\n1,0,3,4\n")
+    data = load_trajectories(str(path))
+    first, second = data.trajectories
+    assert np.isnan(first[1, 1]) and np.isnan(first[2, 2])
+    assert np.isfinite(first[:, 0]).all() and np.isfinite(second).all()
+    path.write_text("trajectory,t,p,q\n0,0,1,2\n,0.1,1.1,2.1\n")
+    line = error_of([str(path)], capsys)
+    assert "the trajectory ids or time stamps contain NaN or infinity" in line
+
+
 def test_threshold_option(tmp_path, capsys, pendulum_data):
     path = tmp_path / "runs.npz"
     np.savez(path, trajectories=pendulum_data)

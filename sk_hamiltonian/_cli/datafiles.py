@@ -41,7 +41,8 @@ def load_trajectories(path):
     line, then one row per sample with the columns ``trajectory, [t,]
     p_1..p_d, q_1..q_d`` (the trajectory id first, then optionally a time
     column named ``t`` or ``time``; the rows of a trajectory contiguous and in
-    time order).
+    time order). A state's missing reading is NaN (an empty CSV field reads
+    as one); the ids and the time stamps must be finite.
 
     Returns
     -------
@@ -154,6 +155,11 @@ def _load_npz(path):
     return data
 
 
+def _number_or_missing(field):
+    """A CSV field as a float; an empty field as NaN."""
+    return float(field) if field.strip() else np.nan
+
+
 def _csv_problem(path, n_columns, error):
     """Which row of a CSV numpy could not read, and why, in the file's own terms."""
     with open(path, encoding="utf-8") as stream:
@@ -169,7 +175,7 @@ def _csv_problem(path, n_columns, error):
                 )
             for field in fields:
                 try:
-                    float(field)
+                    _number_or_missing(field)
                 except ValueError:
                     return f"line {number} holds {field.strip()[:20]!r}, which is not a number"
     # Not found line by line (e.g. quoting): numpy's own words, first sentence only.
@@ -190,7 +196,12 @@ def _load_csv(path):
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")  # numpy warns on a file without rows
-            data = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
+            try:
+                data = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2)
+            except ValueError:
+                # An empty field is a missing reading (NaN), as spreadsheets export it.
+                data = np.loadtxt(path, delimiter=",", skiprows=1, ndmin=2,
+                                  converters=_number_or_missing)
     except ValueError as error:
         raise UsageError(f"{path}: {_csv_problem(path, len(names), error)}") from None
     if data.shape[0] == 0:
