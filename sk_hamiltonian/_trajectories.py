@@ -141,7 +141,7 @@ def check_trajectories(X, *, name="X", min_times=1, allow_missing=False):
         if not allow_missing and not np.isfinite(T).all():
             raise ValueError(
                 f"{name}[{k}] contains NaN or infinity; remove or interpolate those "
-                f"samples first (HamiltonianSearchCV leaves them out itself)."
+                f"samples first (HamiltonianSearchCV's fit leaves them out itself)."
             )
     return trajectories, is_array
 
