@@ -182,12 +182,7 @@ def _own_grids(batches, rel_times):
     """
     kept, irregular = [], []
     for members in batches:
-        rel = rel_times[members[0]]
-        steps = np.diff(rel)
-        if np.ptp(steps) <= GRID_TOLERANCE * rel[-1]:
-            kept.append(members)
-        else:
-            irregular.append(members)
+        (kept if _uniform(rel_times[members[0]]) else irregular).append(members)
     if len(irregular) == 1:
         return kept + irregular, []
     return kept, [[i for members in irregular for i in members]] if irregular else []
@@ -272,14 +267,18 @@ def shared_grids(rel_times):
     for i, rel in enumerate(rel_times):
         if rel.shape[0] < 2:
             continue
-        steps = np.diff(rel)
-        if np.ptp(steps) <= GRID_TOLERANCE * rel[-1]:
-            key = ("uniform", float(np.round(np.log(rel[-1] / steps.shape[0]), 9)))
+        if _uniform(rel):
+            key = ("uniform", float(np.round(np.log(rel[-1] / (rel.shape[0] - 1)), 9)))
         else:
             shape = np.round(rel / rel[-1], 9).tobytes()
             key = (rel.shape[0], shape, float(np.round(np.log(rel[-1]), 9)))
         batches.setdefault(key, []).append(i)
     return list(batches.values())
+
+
+def _uniform(rel):
+    """Whether relative time stamps (two or more) step uniformly, to :data:`GRID_TOLERANCE`."""
+    return np.ptp(np.diff(rel)) <= GRID_TOLERANCE * rel[-1]
 
 
 def integrate_prefixes(integrator, y0, grid, lengths, max_step):

@@ -223,6 +223,11 @@ class _Group:
         """Set the weights of the samples that count (the others stay at zero)."""
         self.W = weights * self.mask[..., None]
 
+    def leave_out(self, samples):
+        """Let ``samples`` (boolean, shaped as the mask) count no more."""
+        self.mask = self.mask & ~samples
+        self.W = self.W * self.mask[..., None]
+
     def valid(self, A):
         """The rows of ``A`` (shaped as ``Y``) at the samples that count, (n_samples, n_states)."""
         return A[self.mask]
@@ -360,11 +365,10 @@ def fit_trajectories(model, theta, groups, *, bound=None, max_iter=MAX_ITER,
 def _leave_out(model, groups, runs, outliers, scale):
     """Leave out the isolated outliers of the last fit (:mod:`.outliers`); whether any."""
     raw = [model.wrap_difference(g.Y - run[0]) for g, run in zip(groups, runs)]
-    found = isolated_outliers(raw, [g.residuals(model, run[0]) for g, run in zip(groups, runs)],
+    found = isolated_outliers(raw, [r * g.W for r, g in zip(raw, groups)],
                               [g.mask for g in groups], scale)
     for g, far, left in zip(groups, found, outliers):
-        g.mask = g.mask & ~far
-        g.W = g.W * g.mask[..., None]
+        g.leave_out(far)
         left |= far
     return any(far.any() for far in found)
 
