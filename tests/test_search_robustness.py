@@ -57,6 +57,7 @@ def test_the_spring_law_does_not_depend_on_the_folds(cv):
         warnings.simplefilter("ignore")
         search = small_search(0.05, cv=cv).fit(spring_data(0.03))
     assert terms(search) == SPRING_TERMS
+    assert search.preparation_["momentum_scale"] == 1.0  # units within ten times: as they are
 
 
 def test_exact_data_give_the_exact_law():
@@ -70,6 +71,41 @@ def test_exact_data_give_the_exact_law():
     coef = {t.text: t.coefficient for t in hamiltonian_terms(search.best_estimator_[-1])}
     np.testing.assert_allclose([coef["p^2"], coef["q^2"], coef["q^4"]], [0.5, 0.5, 0.25],
                                rtol=1e-4)
+
+
+@pytest.mark.parametrize("units", [(1.0, 1000.0), (1000.0, 1.0)],
+                         ids=["positions in thousandths", "momenta in thousandths"])
+def test_the_spring_law_does_not_depend_on_the_units(units):
+    # Positions in millimetres beside momenta in SI units: the position rows
+    # of J dx/dt ~ grad H were a thousand times the momentum rows, and the
+    # search kept p^2 alone. With momenta times b and positions times a, the
+    # law in those units is a b H(q / a, p / b).
+    b, a = units
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        search = small_search(0.05).fit(spring_data(0.01) * np.array([b, a]))
+    assert terms(search) == SPRING_TERMS
+    assert search.preparation_["momentum_scale"] == pytest.approx(a / b, rel=0.5)
+    coef = {t.text: t.coefficient for t in hamiltonian_terms(search.best_estimator_[-1])}
+    np.testing.assert_allclose([coef["p^2"], coef["q^2"], coef["q^4"]],
+                               [a / (2 * b), b / (2 * a), b / (4 * a**3)], rtol=0.01)
+
+
+def test_the_trajectory_fit_keeps_terms_whose_coefficients_are_small_in_the_units():
+    # With positions in thousandths the spring's q^4 reads 2.5e-10 beside
+    # p^2's 500: taken for round-off of the change of basis, it was left out
+    # of the trajectory fit, whose q^2 then took its place (+75 %).
+    X = spring_data(0.01) * np.array([1.0, 1000.0])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        layout = DerivativeTransformer(dt=0.05, degree=5).fit_transform(X)
+        model = HamiltonianRegressor(degree=4, momentum_degree=2,
+                                     terms=[[2, 0], [0, 2], [0, 4]]).fit(layout)
+        info = refine_on_trajectories(model, list(X), 0.05)
+    assert info["status"] == "refined"
+    coef = {t.text: t.coefficient for t in hamiltonian_terms(model)}
+    np.testing.assert_allclose([coef["p^2"], coef["q^2"], coef["q^4"]], [500, 5e-4, 2.5e-10],
+                               rtol=0.01)
 
 
 def test_one_long_record_is_cut_into_blocked_segments_and_fitted():

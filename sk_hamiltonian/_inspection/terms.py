@@ -45,6 +45,17 @@ def _factor_size(power, magnitude, periodic):
     return float(magnitude) ** int(power)
 
 
+def term_scales(powers, magnitude, periodic):
+    """Each readable term's size per unit coefficient: ``r_i**k`` over its variables.
+
+    ``r_i`` is the typical size of variable ``i`` (``magnitude``); periodic and
+    trigonometric factors count 1. A coefficient times its scale is the
+    term's size in the data, which does not depend on the units.
+    """
+    return np.array([np.prod([_factor_size(p, magnitude[i], periodic[i])
+                              for i, p in enumerate(row)]) for row in powers])
+
+
 def _factor_text(name, power, periodic, omega, mixed=False):
     if power == 0:
         return None
@@ -189,12 +200,7 @@ class _Readable:
         self.mixed = _mixed(model)
         self.from_fitting = ReadableBasis(self.unique, model.domain_, self.periodic,
                                           self.mixed).from_fitting
-        magnitude = model._state_magnitude
-        self.scale = np.array([
-            np.prod([_factor_size(p, magnitude[i], self.periodic[i])
-                     for i, p in enumerate(row)])
-            for row in self.unique
-        ])
+        self.scale = term_scales(self.unique, model._state_magnitude, self.periodic)
         self.nonconstant = np.any(self.unique != 0, axis=1)
         low, high = model.domain_[:, 0], model.domain_[:, 1]
         self.omega = np.where(self.mixed, 2 * np.pi / MIXED_PERIOD, 2 * np.pi / (high - low))

@@ -9,6 +9,7 @@ the kept terms' lower-degree companions on the box.
 
 import numpy as np
 
+from .._inspection.terms import term_scales
 from .._space import tensor
 from .._space.space import ModelSpace
 from .solver import FlowModel
@@ -61,8 +62,12 @@ class KeptTerms:
         values = readable.from_fitting @ regressor.coef_
         nonconstant = np.any(space.powers != 0, axis=1)
         # The fit keeps terms in the readable basis; mapped back from the
-        # fitting basis, the others come out at round-off, not at zero.
-        kept = np.abs(values) > ROUND_OFF * np.max(np.abs(values), initial=0.0)
+        # fitting basis, the others come out at round-off, not at zero. Sizes
+        # in the data, not raw coefficients, tell them apart: with positions
+        # in thousandths, the spring's q^4 reads 2.5e-10 beside p^2's 500.
+        size = np.abs(values) * term_scales(space.powers, regressor._state_magnitude,
+                                            space.periodic)
+        kept = size > ROUND_OFF * np.max(size, initial=0.0)
         self.terms = np.flatnonzero(kept & nonconstant)
         self.n_terms = len(self.terms)
         self.reason = None

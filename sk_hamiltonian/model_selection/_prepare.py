@@ -27,6 +27,10 @@ law without being physics, and for what the folds need:
 4. **Clean data.** The noise the data show by themselves (their sixth
    differences, :func:`~sk_hamiltonian._trajectory_fit.difference_noise_model`)
    below :data:`CLEAN_LEVEL` of every variable's spread marks them as exact.
+5. **Units.** Where the momenta's spread and the positions' differ by more
+   than :data:`~._units.BALANCE_BOUND`, the momenta are multiplied by one
+   factor that brings them together (:mod:`._units`), so that the rows of
+   both kinds weigh alike in the candidates' misfits.
 
 Everything left out is named, as in the user's ``X``, in an
 :class:`~sk_hamiltonian.OutlierWarning` and in the search's ``preparation_``.
@@ -45,6 +49,7 @@ from .._trajectory_fit.noise import mean_variance
 from .._warnings import warn
 from ..exceptions import OutlierWarning
 from ._cv_tools import segment_starts
+from ._units import momentum_factor, times_momenta
 
 # A trajectory with more than this fraction of spikes is left out whole.
 MAX_SPIKE_FRACTION = 0.2
@@ -83,12 +88,22 @@ class Prepared:
         infinite value, also in ``left_out``), ``duplicates`` (index to the
         earlier trajectory it repeats),
         ``segments`` (None, or how records were cut), ``noise`` (the data's
-        own noise model, ``(a_i, b_i)`` per variable, or None) and ``clean``.
+        own noise model, ``(a_i, b_i)`` per variable, or None), ``clean`` and
+        ``momentum_scale`` (the factor the momenta of ``X`` are multiplied
+        by, 1.0 where the units were left as they are).
+    momentum_scale : float
+        That factor.
+    user_X, user_trajectories : ndarray or list of ndarray, and list of ndarray
+        ``X`` and ``trajectories`` in the user's units (the same objects
+        where the momentum scale is 1).
     """
 
-    def __init__(self, X, trajectories, folds, origin, report):
+    def __init__(self, X, trajectories, folds, origin, report, user_trajectories):
         self.X, self.trajectories, self.folds, self.report = X, trajectories, folds, report
         self.origin = origin
+        self.momentum_scale = report["momentum_scale"]
+        self.user_trajectories = user_trajectories
+        self.user_X = X if user_trajectories is trajectories else _stacked(user_trajectories)
 
 
 def _pieces(flags):
@@ -98,7 +113,7 @@ def _pieces(flags):
 
 
 def prepare(trajectories, dt, cv, groups):
-    """Stage 0: spikes and duplicates left out, long records segmented, the folds.
+    """Stage 0: spikes and duplicates left out, long records segmented, the folds, the units.
 
     Parameters
     ----------
@@ -116,7 +131,8 @@ def prepare(trajectories, dt, cv, groups):
     Raises
     ------
     ValueError
-        If the data are too few for the folds even cut into segments, or
+        If ``cv`` gives fewer than 2 folds, the data are too few for the folds
+        even cut into segments, or
         (``dt`` None) a trajectory's time stamps are not finite or do not
         strictly increase.
     """
@@ -138,6 +154,10 @@ def prepare(trajectories, dt, cv, groups):
         folds = _trajectory_folds(cv, len(trajectories), origin[:, 0], groups)
     else:
         pieces, origin, folds = _segmented(pieces, origin, n_splits, cv, report)
+    if len(folds) < 2:
+        raise ValueError(f"cv must give at least 2 folds; got {len(folds)}.")
+    report["momentum_scale"] = momentum_factor([P[:, offset:] for P in pieces])
+    user_pieces, pieces = pieces, times_momenta(pieces, report["momentum_scale"], offset)
     noise = difference_noise_model([P[:, offset:] for P in pieces])
     report["noise"] = noise
     if noise is not None:
@@ -145,8 +165,12 @@ def prepare(trajectories, dt, cv, groups):
         rms = np.sqrt(np.mean(samples**2, axis=0))
         level = np.sqrt(mean_variance(noise, samples))
         report["clean"] = bool(np.all(level <= CLEAN_LEVEL * np.where(rms > 0, rms, 1.0)))
-    X = np.stack(pieces) if len({len(P) for P in pieces}) == 1 else pieces
-    return Prepared(X, pieces, folds, origin, report)
+    return Prepared(_stacked(pieces), pieces, folds, origin, report, user_pieces)
+
+
+def _stacked(pieces):
+    """One array where the pieces are of one length, else the list."""
+    return np.stack(pieces) if len({len(P) for P in pieces}) == 1 else pieces
 
 
 def _without_spikes(trajectories, states, report):

@@ -1,7 +1,7 @@
 """HamiltonianSearchCV: model spaces, fit targets, de-noising, degree and sparsity, cross-validated.
 
 The stages' modules, on one set of folds: :mod:`._prepare` (spikes,
-duplicates, long records, the folds), :mod:`._screen` (the model spaces),
+duplicates, long records, the folds; :mod:`._units`), :mod:`._screen` (the spaces),
 :mod:`._degrees` (one finalist per layout and fit target), :mod:`._finalists`
 (the choice, with :mod:`._judgement` and :mod:`._offers`), :mod:`._refine`
 (the trajectory fit), :mod:`._energy_levels`; :mod:`._search_checks`.
@@ -28,6 +28,7 @@ from ._finalists import decide
 from ._prepare import prepare
 from ._refine import refine_chosen
 from ._results import cv_results, describe_layout
+from ._units import refit_in_user_units, scaled_domain
 from ._screen import (
     PER_COORDINATE_DOF,
     angle_like,
@@ -70,7 +71,9 @@ class HamiltonianSearchCV(BaseEstimator):
        contiguous segments and each fold holds out a contiguous stretch of them
        (blocked cross-validation); exact data (noise below 0.001 % of every
        variable) are searched with finite differences and the fit targets exact
-       to ``O(dt**4)`` only (Simpson's pairs, the weak form).
+       to ``O(dt**4)`` only (Simpson's pairs, the weak form); momenta spread
+       over ten times more or less than the positions are rescaled to them for
+       stages 1 to 3, where both rows then weigh alike (``momentum_scale``).
     1. **Screen** the model spaces (``spaces``) on one reference layout (the
        middle de-noising degree; beyond two degrees of freedom, the middle one
        of those whose polynomials follow the trajectories, without a
@@ -209,11 +212,9 @@ class HamiltonianSearchCV(BaseEstimator):
         ``(n_samples, n_states)``, from the finalist's own derivative
         layout), as :class:`~sklearn.model_selection.GridSearchCV` scores a
         regressor fitted on states and derivatives; e.g. ``"r2"`` scores the
-        learned vector field against the held-out derivative estimates.
-        Those estimates differ from layout to layout (de-noising degree),
-        which is why the default compares every finalist with the same raw
-        observations instead. Stages 1 and 2 rank candidates by their
-        equation error whatever ``scoring`` is.
+        learned vector field against the held-out derivative estimates (which
+        differ from layout to layout: the default compares all with the same
+        raw observations). Stages 1 and 2 rank by equation error whatever it is.
     refit : bool, default=True
         Refit the chosen candidate on all the data (``best_estimator_``) and
         refine it (stage 4). False: the search stops after the choice
@@ -229,7 +230,8 @@ class HamiltonianSearchCV(BaseEstimator):
     ----------
     best_estimator_ : Pipeline
         ``make_pipeline(DerivativeTransformer(dt=dt), HamiltonianRegressor())``
-        with ``best_params_``, fitted on all the data (with ``refit=True``).
+        with ``best_params_``, fitted on all the data (with ``refit=True``); with
+        rescaled momenta, their fit's terms as ``terms``, and no threshold.
     best_params_ : dict
         The chosen candidate's parameters, in the pipeline's names.
     best_index_ : int
@@ -274,7 +276,8 @@ class HamiltonianSearchCV(BaseEstimator):
         ``dropped`` (trajectories left out whole), ``duplicates`` (each repeat
         and what it repeats), ``segments`` (None, or how records were cut),
         ``noise`` (the data's own noise model, ``(a_i, b_i)`` per variable),
-        ``clean`` (whether the data look exact) and, after the refit,
+        ``clean`` (whether the data look exact), ``momentum_scale`` (the factor
+        stages 1 to 3 multiplied the momenta by; 1.0 for none) and, after the refit,
         ``one_level`` (None, or ``span``, ``energy`` and ``message`` where
         every trajectory lies on one level of the chosen law's energy and so
         determines it only there: :class:`~sk_hamiltonian.IllConditionedWarning`).
@@ -401,12 +404,11 @@ class HamiltonianSearchCV(BaseEstimator):
         # Stage 0: the data as the folds will see them.
         prepared = prepare(trajectories, self.dt, self.cv, groups)
         X, trajectories, folds = prepared.X, prepared.trajectories, prepared.folds
+        domain = scaled_domain(domain, prepared.momentum_scale)
         if spaces is None:  # which positions look like angles, once spikes are left out
             offset = 1 if self.dt is None else 0
             angles = angle_like([T[:, offset:] for T in trajectories])
             spaces = auto_spaces(n_states, angles=angles)
-        if len(folds) < 2:
-            raise ValueError(f"cv must give at least 2 folds; got {len(folds)}.")
         if prepared.report["segments"] is not None:
             self._say(f"segments: {prepared.report['segments']['rule']}")
         denoise = check_denoise(self.denoise_degrees, min(T.shape[0] for T in trajectories))
@@ -467,26 +469,25 @@ class HamiltonianSearchCV(BaseEstimator):
         self.best_params_ = self.cv_results_["params"][self.best_index_]
         self.best_score_ = float(self.cv_results_["mean_test_score"][self.best_index_])
         self.n_features_in_ = n_states
+        self.refinement_ = dict(status="not asked")
         if not self.refit:
-            self.refinement_ = dict(status="not asked")
             self.refit_time_ = 0.0
             self.search_time_ = time.perf_counter() - start
             return self
         # Stage 4: the refit on all the data, and its coefficients on the trajectories.
         refit_start = time.perf_counter()
-        # The chosen model reads the columns' order: X back in it, while the
-        # refinement's trajectories stay in the model's (p, q) order.
-        X_columns = swap_raw(X, 1 if self.dt is None else 0) if swapped else X
-        self.best_estimator_ = Pipeline([
+        # The chosen model reads the columns' order; the refinement's trajectories are (p, q).
+        X_columns, balanced = (swap_raw(Z, 1 if self.dt is None else 0) if swapped else Z
+                               for Z in (prepared.user_X, X))
+        self.best_estimator_ = refit_in_user_units(Pipeline([
             ("derivativetransformer", DerivativeTransformer(dt=self.dt)),
             ("hamiltonianregressor", HamiltonianRegressor(state_names=self.state_names,
                                                           state_order=self.state_order)),
-        ]).set_params(**self.best_params_).fit(X_columns)
-        self.refinement_ = dict(status="not asked")
+        ]).set_params(**self.best_params_), X_columns, balanced, prepared.momentum_scale)
         if self.refine == "trajectories":
-            self._say("refine: the chosen model's coefficients on the raw trajectories")
-            self.refinement_ = refine_chosen(self.best_estimator_, X_columns, trajectories,
-                                             self.dt, folds, prepared.origin)
+            self.refinement_ = refine_chosen(self.best_estimator_, X_columns,
+                                             prepared.user_trajectories, self.dt, folds,
+                                             prepared.origin)
             self._say(f"refine: {self.refinement_['status']}")
         self.preparation_["one_level"] = warn_one_level(self.best_estimator_[-1], X_columns,
                                                         self.dt)
@@ -506,8 +507,7 @@ class HamiltonianSearchCV(BaseEstimator):
         Returns
         -------
         dXdt : ndarray or list of ndarray
-            ``predict`` of
-            ``best_estimator_``: the learned vector field at the
+            ``best_estimator_.predict(X)``: the learned vector field at the
             trajectories' (de-noised) states, in their shape.
         """
         self._check_refitted("predict")
