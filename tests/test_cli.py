@@ -1401,3 +1401,31 @@ def test_the_reports_rollouts_stay_in_the_chart_of_the_data():
     assert ok == ok_far == t.size
     np.testing.assert_allclose(far, near + [0.0, 2 * np.pi], atol=1e-9)
     assert np.abs(np.diff(far[:, 1])).max() < 1.0
+
+
+def test_positions_in_thousandths_are_balanced_and_the_law_read_in_the_files_units(
+        tmp_path, capsys):
+    from sk_hamiltonian.datasets import anharmonic_spring
+
+    rng = np.random.default_rng(0)
+    X = anharmonic_spring().solve(rng.uniform(-1.5, 1.5, size=(120, 2)), 0.05 * np.arange(41))
+    X = X + 0.01 * X.std(axis=(0, 1)) * rng.standard_normal(X.shape)
+    path = tmp_path / "millimetres.npz"
+    np.savez(path, trajectories=X * np.array([1.0, 1000.0]))
+    status, out, _ = run([str(path), "--dt", "0.05", "--quick", "--no-resample", "--output",
+                          str(tmp_path / "out")], capsys)
+    assert status == 0
+    assert re.search(r"^note: the positions spread \d+ times more than the momenta: the search "
+                     r"compares its candidates with the momenta multiplied by", out,
+                     flags=re.M), out
+    learned = re.search(r"^learned: (.*)$", out, flags=re.M).group(1)
+    found = re.fullmatch(r"H~ = (\S+) \(±(\S+)\) p\^2 \+ (\S+) \(±(\S+)\) q\^2 \+ (\S+) "
+                         r"\(±(\S+)\) q\^4 \+ const \(90% intervals of the trajectory fit\)",
+                         learned)
+    assert found, learned
+    coef, half = np.array(found.groups(), dtype=float).reshape(3, 2).T
+    # p^2 a / 2 + q^2 / (2 a) + q^4 / (4 a^3) for positions times a = 1000.
+    np.testing.assert_allclose(coef, [500, 5e-4, 2.5e-10], rtol=0.01)
+    # Every interval as wide, relatively, as the noise makes it (p^2's once
+    # read ±1e-13: its direction cut off as round-off beside q^4's).
+    assert np.all((half / coef > 1e-5) & (half / coef < 0.01)), learned

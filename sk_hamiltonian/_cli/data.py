@@ -73,7 +73,7 @@ class Data:
         for k, start, stop in prepared.origin:
             whole = start == 0 and stop == len(self.times[k])
             ids.append(self.ids[k] if whole else f"{self.ids[k]}, samples {start}-{stop - 1}")
-        self.X, self.ids = prepared.X, ids
+        self.X, self.ids = prepared.user_X, ids
         self.folds = prepared.folds
         self.segmented = prepared.report["segments"] is not None
         self.groups = None
@@ -266,6 +266,13 @@ def prepare_for_search(args, data):
               f"{', '.join(pairs[:10])}" + (f" and {len(pairs) - 10} more" if len(pairs) > 10 else ""))
     if report["segments"] is not None:
         print(f"note: {report['segments']['rule']} (blocked cross-validation)")
+    factor = report["momentum_scale"]
+    if factor != 1.0:
+        print(f"note: the {'positions' if factor > 1 else 'momenta'} spread "
+              f"{max(factor, 1 / factor):.3g} times more than the "
+              f"{'momenta' if factor > 1 else 'positions'}: the search compares its "
+              f"candidates with the momenta multiplied by {factor:.3g}, so that the equations "
+              f"of both weigh alike, and fits the chosen terms in the file's units")
     if report["clean"]:
         print("note: the data look exact (noise below 0.001% of every variable): finite "
               "differences, Simpson's pairs and the weak form only")

@@ -43,6 +43,22 @@ def information(model, groups, runs):
     return S, scores
 
 
+def equilibrated_inverse(information):
+    """The pseudo-inverse of ``information`` scaled to a unit diagonal first.
+
+    Coefficients in the user's units can differ by twenty orders of magnitude
+    (the spring's ``p^2`` 500 beside its ``q^4`` 2.5e-10 with positions in
+    thousandths), and so do the diagonal entries of their information: a
+    plain pseudo-inverse cuts the small ones' directions off as round-off,
+    and reports a variance of zero there. Scaled, it sees their correlations
+    only, which do not depend on the units.
+    """
+    diagonal = np.diag(information)
+    scale = np.where(diagonal > 0, 1 / np.sqrt(np.where(diagonal > 0, diagonal, 1.0)), 1.0)
+    outer = np.outer(scale, scale)
+    return np.linalg.pinv(information * outer) * outer
+
+
 def sandwich_covariance(information, scores, clusters):
     """The covariance of the parameters from their information and scores, clustered.
 
@@ -64,7 +80,7 @@ def sandwich_covariance(information, scores, clusters):
     np.add.at(summed, index, scores)
     n = len(labels)
     meat = summed.T @ summed * (n / max(n - 1, 1))
-    inverse = np.linalg.pinv(information)
+    inverse = equilibrated_inverse(information)
     covariance = inverse @ meat @ inverse
     return (covariance + covariance.T) / 2
 
@@ -92,7 +108,7 @@ def parameter_covariance(information, scores, clusters):
         than the noise model's.
     """
     sandwich = sandwich_covariance(information, scores, clusters)
-    model_based = np.diag(np.linalg.pinv(information))
+    model_based = np.diag(equilibrated_inverse(information))
     variance = np.diag(sandwich)
     with np.errstate(divide="ignore", invalid="ignore"):
         ratio = np.where(variance > 0, model_based / variance, 1.0)
