@@ -14,6 +14,7 @@ a simulation fails). CPU seconds of the search, BLAS on one thread::
     python benchmarks/outside_scenes.py --scenes exponential --by-hand
     python benchmarks/outside_scenes.py --scenes small_angles --splits 5
     python benchmarks/outside_scenes.py --scenes small_angles --stamps
+    python benchmarks/outside_scenes.py --scenes stiff --units 1000 1
 
 With ``--splits N``, each case is also searched with ``cv=KFold(5,
 shuffle=True, random_state=r)`` for ``r = 1 .. N`` (rows marked ``split r``),
@@ -22,6 +23,11 @@ and a last line per case says whether every split kept the same terms.
 With ``--stamps``, each record is sampled at times of its own: its steps
 ``dt`` times a uniform factor in ``[0.6, 1.4]``, the time stamps in the
 first column and the search given ``dt=None`` (a lab clock's stamps).
+
+With ``--units P Q``, every momentum is multiplied by ``P`` and every
+position by ``Q`` (records in other units: ``1 1000`` reads the positions in
+thousandths); the model is simulated in those units and its error measured
+back in the scene's own.
 
 With ``--by-hand``, the scenes whose law is in none of the spaces are also
 fitted as the paper does, by a polynomial of one degree (8, then 10) on
@@ -244,8 +250,11 @@ def states_below(system, energy, n, rng):
     return np.array(found[:n])
 
 
-def records(system, energy, dt, shape, noise, seed, stamps=False):
-    """Noisy records; with ``stamps``, each at times of its own, the times in the first column."""
+def records(system, energy, dt, shape, noise, seed, stamps=False, units=(1.0, 1.0)):
+    """Noisy records; with ``stamps``, each at times of its own, the times in the first column.
+
+    ``units``: the factors of the momenta and of the positions.
+    """
     n, length = SHAPES[shape]
     rng = np.random.default_rng(seed)
     x0 = states_below(system, energy, n, rng)
@@ -261,7 +270,19 @@ def records(system, energy, dt, shape, noise, seed, stamps=False):
     else:
         scale = np.sqrt(np.mean(X.reshape(-1, X.shape[-1]) ** 2, axis=0))
         X = X + level * scale * rng.standard_normal(X.shape)
+    X = X * np.repeat(np.asarray(units, dtype=float), X.shape[-1] // 2)
     return np.concatenate([times[..., None], X], axis=2) if stamps else X
+
+
+class InUnits:
+    """A model of records in other units, simulated from and back to the scene's own."""
+
+    def __init__(self, model, factors):
+        self.model, self.factors = model, factors
+        self.periodic_ = model.periodic_
+
+    def simulate(self, x0, t, **options):
+        return self.model.simulate(x0 * self.factors, t, **options) / self.factors
 
 
 def fresh_error(model, system, energy):
@@ -288,10 +309,10 @@ def by_hand(system, energy, dt, X):
     return ", ".join(errors)
 
 
-def run(name, shape, noise, seed, hand=False, split=None, stamps=False):
+def run(name, shape, noise, seed, hand=False, split=None, stamps=False, units=(1.0, 1.0)):
     """Search one case and print its row; returns the kept terms."""
     (system, law), energy, dt, _ = SCENES[name]
-    X = records(system, energy, dt, shape, noise, seed, stamps)
+    X = records(system, energy, dt, shape, noise, seed, stamps, units)
     cv = 5 if split is None else KFold(5, shuffle=True, random_state=split)
     start = time.process_time()
     with threadpool_limits(1), warnings.catch_warnings():
@@ -306,8 +327,13 @@ def run(name, shape, noise, seed, hand=False, split=None, stamps=False):
         f"{judgement['kind']}, best {judgement['best']}"
         + (f", pruned {judgement['pruned']}" if judgement.get("pruned") else ""))
     folds = ("" if split is None else f"split {split}  ") + ("stamped  " if stamps else "")
+    if tuple(units) != (1.0, 1.0):
+        factor = search.preparation_["momentum_scale"]
+        folds += f"units p*{units[0]:g} q*{units[1]:g} (momenta x {factor:.3g})  "
+    factors = np.repeat(np.asarray(units, dtype=float), X.shape[-1] // 2 if not stamps
+                        else (X.shape[-1] - 1) // 2)
     print(f"{name:12s} {shape:5s} {noise:6s} seed {seed:3d}  {folds}cpu {seconds:5.1f} s  "
-          f"exact {exact:5s}  error {fresh_error(model, system, energy):.3g}  "
+          f"exact {exact:5s}  error {fresh_error(InUnits(model, factors), system, energy):.3g}  "
           f"[{verdict}]  {format_hamiltonian(model)}", flush=True)
     if hand and law is None and not stamps:
         print(f"{'':12s} by hand: {by_hand(system, energy, dt, X)}", flush=True)
@@ -324,12 +350,16 @@ def main():
                         help="also search each case under this many shuffled 5-fold splits")
     parser.add_argument("--stamps", action="store_true",
                         help="records sampled at jittered times of their own (dt=None)")
+    parser.add_argument("--units", nargs=2, type=float, default=(1.0, 1.0), metavar=("P", "Q"),
+                        help="multiply every momentum by P and every position by Q")
     args = parser.parse_args()
     for name in args.scenes:
         for shape, noise in SCENES[name][3]:
             for seed in args.seeds:
-                laws = [run(name, shape, noise, seed, hand=args.by_hand, stamps=args.stamps)]
-                laws += [run(name, shape, noise, seed, split=r, stamps=args.stamps)
+                laws = [run(name, shape, noise, seed, hand=args.by_hand, stamps=args.stamps,
+                            units=args.units)]
+                laws += [run(name, shape, noise, seed, split=r, stamps=args.stamps,
+                             units=args.units)
                          for r in range(1, args.splits + 1)]
                 if args.splits:
                     same = all(kept == laws[0] for kept in laws)

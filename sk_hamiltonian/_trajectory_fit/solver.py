@@ -550,7 +550,13 @@ def _gauss_newton_step(model, groups, runs, lam, fixed=False):
     if fixed:
         return np.zeros(k), [np.einsum("nij,nj->ni", AA_inv, Ar) for AA_inv, _, Ar in parts]
     S[np.diag_indices(k)] *= 1 + lam
-    step_theta = np.linalg.lstsq(S, rhs, rcond=None)[0]
+    # Solved scaled to a unit diagonal: coefficients in the user's units can
+    # differ by twenty orders of magnitude (the stiff spring's p^2 0.002 with
+    # momenta in thousandths, beside its q^4 1835), and unscaled, the
+    # least-squares solve cut the small directions off as round-off.
+    diagonal = np.diag(S)
+    scale = 1 / np.sqrt(np.where(diagonal > 0, diagonal, 1.0))
+    step_theta = scale * np.linalg.lstsq(S * np.outer(scale, scale), scale * rhs, rcond=None)[0]
     steps_x0 = [np.einsum("nij,nj->ni", AA_inv, Ar) - AA_inv_AB @ step_theta
                 for AA_inv, AA_inv_AB, Ar in parts]
     return step_theta, steps_x0
