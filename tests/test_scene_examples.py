@@ -49,6 +49,7 @@ EXAMPLES = {
     "plot_one_record": ("one_record", ["one_record"]),
     "plot_coupled_long_records": ("coupled_long_records", ["coupled_long_records"]),
     "plot_pruned_terms": ("pruned_terms", ["pruned_terms"]),
+    "plot_lab_records": ("lab_records", ["lab_records"]),
 }
 
 
@@ -282,3 +283,21 @@ def test_intervals_keep_the_pendulum_terms_and_band_the_refits(runs):
     # The band starts at the one initial state and widens (quick mode: 0.56 at T = 20).
     assert results["band_start_width"] == 0.0 and results["band_width_T20"] > 0.01
 
+
+
+def test_lab_records_in_their_own_units_with_logger_faults_give_the_law(runs):
+    results = runs[2]["plot_lab_records"]
+    assert results["terms"] == ["p^2", "q^2", "q^4"]
+    # Positions in millimetres: the law is 500 p^2 + 0.0005 q^2 + 2.5e-10 q^4
+    # (quick mode: 500.06, 0.00049979, 2.5024e-10).
+    coefficients = [results["coefficients"][term] for term in ("p^2", "q^2", "q^4")]
+    np.testing.assert_allclose(coefficients, [500, 5e-4, 2.5e-10], rtol=0.01)
+    # The momenta were brought to the positions' spread for the search.
+    assert results["momentum_scale"] > 100
+    # Each fault named where it was put: lost readings, the spike, and the
+    # two readings moved off at the ends of records.
+    assert results["missing"] == {"4": [12], "9": [30], "20": [0]}
+    assert results["left_out"] == {"4": [12], "9": [30], "20": [0], "30": [25]}
+    assert results["outliers"] == {"50": [0], "70": [40]}
+    # Quick mode: at most 0.013 at T = 20 from the three fresh states.
+    assert max(results["errors_T20"]) < 0.05
