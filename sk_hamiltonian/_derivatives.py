@@ -334,12 +334,15 @@ class DerivativeTransformer(TransformerMixin, BaseEstimator):
         worst = int(np.flatnonzero(misfit)[np.argmax(overall[misfit])])
         size = "far" if not np.isfinite(overall[worst]) else f"{overall[worst]:.3g} times"
         warn(
-            f"DerivativeTransformer: the least-squares polynomials (degree={self.degree}, "
-            f"window={self.window_} samples) leave residuals {size} above the noise level "
-            f"estimated from the data (state variable {worst}): they cannot follow the "
-            f"trajectories, and their derivatives are biased. Use a smaller `window` or a "
-            f"larger `degree` (a cross-validated search over both finds the balance), or "
-            f"method='finite_difference' for clean data.",
+            SmoothingWarning(
+                f"DerivativeTransformer: the least-squares polynomials (degree={self.degree}, "
+                f"window={self.window_} samples) leave residuals {size} above the noise level "
+                f"estimated from the data (state variable {worst}): they cannot follow the "
+                f"trajectories, and their derivatives are biased. Use a smaller `window` or a "
+                f"larger `degree` (a cross-validated search over both finds the balance), or "
+                f"method='finite_difference' for clean data.",
+                ratio=overall[worst] if np.isfinite(overall[worst]) else np.inf,
+            ),
             SmoothingWarning,
         )
 

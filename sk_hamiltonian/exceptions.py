@@ -84,7 +84,34 @@ class SmoothingWarning(UserWarning):
     level estimated from the data: each polynomial spans too much of a
     trajectory for its degree, and the derivatives it gives are biased. A
     smaller ``window`` or a larger ``degree`` helps.
+
+    Parameters
+    ----------
+    message : str
+        How far above the noise, and what to do.
+    ratio : float, default=nan
+        The residuals' root-mean-square over the noise level's (``inf`` where
+        the noise level is zero), for the worst state variable.
+
+    Attributes
+    ----------
+    ratio : float
+        As given.
+
+    Examples
+    --------
+    >>> import warnings
+    >>> from sk_hamiltonian import SmoothingWarning
+    >>> with warnings.catch_warnings(record=True) as caught:
+    ...     warnings.simplefilter("always")
+    ...     warnings.warn(SmoothingWarning("residuals 41 times above ...", ratio=41.0))
+    >>> caught[0].message.ratio
+    41.0
     """
+
+    def __init__(self, message, ratio=float("nan")):
+        super().__init__(message)
+        self.ratio = float(ratio)
 
 
 class StateOrderWarning(UserWarning):

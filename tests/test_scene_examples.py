@@ -292,8 +292,9 @@ def test_lab_records_in_their_own_units_with_logger_faults_give_the_law(runs):
     # (quick mode: 500.06, 0.00049979, 2.5024e-10).
     coefficients = [results["coefficients"][term] for term in ("p^2", "q^2", "q^4")]
     np.testing.assert_allclose(coefficients, [500, 5e-4, 2.5e-10], rtol=0.01)
-    # The momenta were brought to the positions' spread for the search.
-    assert results["momentum_scale"] > 100
+    # The momenta were brought to the positions' spread for the search, by
+    # the power of ten that gives back the numbers of SI units.
+    assert results["momentum_scale"] == 1000
     # Each fault named where it was put: lost readings, the spike, and the
     # two readings moved off at the ends of records.
     assert results["missing"] == {"4": [12], "9": [30], "20": [0]}

@@ -17,9 +17,9 @@ records as they are:
 - the positions spread about a thousand times more than the momenta, so the
   equations of ``dq/dt`` would outweigh those of ``dp/dt`` a million times in
   every misfit; the search compares its candidates with the momenta
-  multiplied by one factor that brings the two together
-  (``preparation_["momentum_scale"]``), and fits the chosen terms in the
-  file's units;
+  multiplied by the power of ten that brings the two nearest together
+  (``preparation_["momentum_scale"]``, here 1000: the numbers of SI units
+  again), and fits the chosen terms in the file's units;
 - lost readings and spikes are left out before any model sees them, their
   records cut there (``preparation_["missing"]``, ``["left_out"]``);
 - readings moved off at the ends of records are found by the trajectory fit,
@@ -85,7 +85,7 @@ for warning in caught:  # the search's own words (its inner fits warn of their f
 model = search.best_estimator_[-1]
 print("learned:", format_hamiltonian(model))
 print("truth in these units: 500 p^2 + 0.0005 q^2 + 2.5e-10 q^4")
-print("momenta multiplied by", round(search.preparation_["momentum_scale"], 1),
+print("momenta multiplied by", search.preparation_["momentum_scale"],
       "for the comparison of candidates")
 print("missing readings:", search.preparation_["missing"])
 print("left out before the search:", search.preparation_["left_out"])

@@ -271,7 +271,7 @@ def prepare_for_search(args, data):
         print(f"note: the {'positions' if factor > 1 else 'momenta'} spread "
               f"{max(factor, 1 / factor):.3g} times more than the "
               f"{'momenta' if factor > 1 else 'positions'}: the search compares its "
-              f"candidates with the momenta multiplied by {factor:.3g}, so that the equations "
+              f"candidates with the momenta multiplied by {factor:g}, so that the equations "
               f"of both weigh alike, and fits the chosen terms in the file's units")
     if report["clean"]:
         print("note: the data look exact (noise below 0.001% of every variable): finite "

@@ -72,12 +72,12 @@ class HamiltonianSearchCV(BaseEstimator):
        (blocked cross-validation); exact data (noise below 0.001 % of every
        variable) are searched with finite differences and the fit targets exact
        to ``O(dt**4)`` only (Simpson's pairs, the weak form); momenta spread
-       over ten times more or less than the positions are rescaled to them for
-       stages 1 to 3, where both rows then weigh alike (``momentum_scale``).
+       over ten times more or less than the positions are rescaled to them by a
+       power of ten for stages 1 to 3, so both rows weigh alike (``momentum_scale``).
     1. **Screen** the model spaces (``spaces``) on one reference layout (the
-       middle de-noising degree; beyond two degrees of freedom, the middle one
-       of those whose polynomials follow the trajectories, without a
-       :class:`~sk_hamiltonian.SmoothingWarning`, else finite differences) and
+       middle de-noising degree of those whose polynomials follow the data,
+       residuals within 20 times the noise (beyond two degrees of freedom, no
+       :class:`~sk_hamiltonian.SmoothingWarning`), else finite differences) and
        the derivative fit (Simpson's pairs for exact data), at the smallest
        degree: each candidate's held-out *equation error* (the relative
        residual of the held-out trajectories' least-squares rows) ranks spaces,
@@ -88,9 +88,9 @@ class HamiltonianSearchCV(BaseEstimator):
        the part of an equation error a richer model can take from the bias of
        the estimated derivatives), than the best of all and than the best at
        its own threshold (where that one is not rejected).
-    2. **Search** every layout and fit target in the kept spaces (beyond two
-       degrees of freedom, the layouts passed over by the screen are left
-       out, unless all are), degree by degree from the smallest (a degree no
+    2. **Search** every layout and fit target in the kept spaces (the layouts
+       passed over by the screen are left out, unless all are), degree by
+       degree from the smallest (a degree no
        better than the best below it ends the space's search), at every
        threshold; within each layout and fit target, the candidate with the
        fewest terms among those the data cannot reject against the lowest
@@ -418,10 +418,10 @@ class HamiltonianSearchCV(BaseEstimator):
             denoise = [v for v in denoise if v == "finite_difference"] or denoise[:1]
             fit_on = [v for v in fit_on if v in CLEAN_FIT_TARGETS] or fit_on
             self._say(f"clean data: layouts {denoise}, fit targets {fit_on}")
-        # Beyond PER_COORDINATE_DOF the screen chooses among nested spaces of
-        # pairwise couplings, where a biased layout keeps the larger ones.
+        # Layouts whose polynomials cannot follow the data are passed over; beyond
+        # PER_COORDINATE_DOF, among nested pairwise spaces, any biased one (it keeps the larger).
         layouts, misfits = derivative_layouts(X, self.dt, denoise,
-                                              watch_misfit=n_states // 2 > PER_COORDINATE_DOF)
+                                              strict=n_states // 2 > PER_COORDINATE_DOF)
         # Stage 1: the spaces, on the reference layout and fit target.
         reference = screen_layout(denoise, misfits)
         target = screen_target(fit_on, clean)
@@ -432,8 +432,7 @@ class HamiltonianSearchCV(BaseEstimator):
                                          self.n_jobs)
         self._say(f"kept: {[spaces[k] for k in kept]}")
         # Stage 2: every layout and fit target in the kept spaces, a finalist each;
-        # beyond PER_COORDINATE_DOF, where each pair costs the most, the
-        # biased layouts are left out, unless all are.
+        # the biased layouts are left out, unless all are.
         searched = [key for key in denoise if key not in misfits] or denoise
         if len(searched) < len(denoise):
             self._say(f"biased layouts left out: "
