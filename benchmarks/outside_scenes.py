@@ -15,6 +15,7 @@ a simulation fails). CPU seconds of the search, BLAS on one thread::
     python benchmarks/outside_scenes.py --scenes small_angles --splits 5
     python benchmarks/outside_scenes.py --scenes small_angles --stamps
     python benchmarks/outside_scenes.py --scenes stiff --units 1000 1
+    python benchmarks/outside_scenes.py --scenes softening cubic --dt 0.5
 
 With ``--splits N``, each case is also searched with ``cv=KFold(5,
 shuffle=True, random_state=r)`` for ``r = 1 .. N`` (rows marked ``split r``),
@@ -28,6 +29,9 @@ With ``--units P Q``, every momentum is multiplied by ``P`` and every
 position by ``Q`` (records in other units: ``1 1000`` reads the positions in
 thousandths); the model is simulated in those units and its error measured
 back in the scene's own.
+
+With ``--dt DT``, every record is sampled every ``DT`` instead of the
+scene's step (the same number of samples, so over a longer time).
 
 With ``--by-hand``, the scenes whose law is in none of the spaces are also
 fitted as the paper does, by a polynomial of one degree (8, then 10) on
@@ -309,9 +313,11 @@ def by_hand(system, energy, dt, X):
     return ", ".join(errors)
 
 
-def run(name, shape, noise, seed, hand=False, split=None, stamps=False, units=(1.0, 1.0)):
+def run(name, shape, noise, seed, hand=False, split=None, stamps=False, units=(1.0, 1.0),
+        dt=None):
     """Search one case and print its row; returns the kept terms."""
-    (system, law), energy, dt, _ = SCENES[name]
+    (system, law), energy, scene_dt, _ = SCENES[name]
+    dt = scene_dt if dt is None else dt
     X = records(system, energy, dt, shape, noise, seed, stamps, units)
     cv = 5 if split is None else KFold(5, shuffle=True, random_state=split)
     start = time.process_time()
@@ -327,6 +333,8 @@ def run(name, shape, noise, seed, hand=False, split=None, stamps=False, units=(1
         f"{judgement['kind']}, best {judgement['best']}"
         + (f", pruned {judgement['pruned']}" if judgement.get("pruned") else ""))
     folds = ("" if split is None else f"split {split}  ") + ("stamped  " if stamps else "")
+    if dt != scene_dt:
+        folds += f"dt {dt:g}  "
     if tuple(units) != (1.0, 1.0):
         factor = search.preparation_["momentum_scale"]
         folds += f"units p*{units[0]:g} q*{units[1]:g} (momenta x {factor:.3g})  "
@@ -352,14 +360,16 @@ def main():
                         help="records sampled at jittered times of their own (dt=None)")
     parser.add_argument("--units", nargs=2, type=float, default=(1.0, 1.0), metavar=("P", "Q"),
                         help="multiply every momentum by P and every position by Q")
+    parser.add_argument("--dt", type=float, default=None,
+                        help="sample every record every DT instead of the scene's step")
     args = parser.parse_args()
     for name in args.scenes:
         for shape, noise in SCENES[name][3]:
             for seed in args.seeds:
                 laws = [run(name, shape, noise, seed, hand=args.by_hand, stamps=args.stamps,
-                            units=args.units)]
+                            units=args.units, dt=args.dt)]
                 laws += [run(name, shape, noise, seed, split=r, stamps=args.stamps,
-                             units=args.units)
+                             units=args.units, dt=args.dt)
                          for r in range(1, args.splits + 1)]
                 if args.splits:
                     same = all(kept == laws[0] for kept in laws)
