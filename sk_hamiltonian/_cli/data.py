@@ -268,11 +268,12 @@ def prepare_for_search(args, data):
         print(f"note: {report['segments']['rule']} (blocked cross-validation)")
     factor = report["momentum_scale"]
     if factor != 1.0:
-        print(f"note: the {'positions' if factor > 1 else 'momenta'} spread "
-              f"{max(factor, 1 / factor):.3g} times more than the "
-              f"{'momenta' if factor > 1 else 'positions'}: the search compares its "
-              f"candidates with the momenta multiplied by {factor:g}, so that the equations "
-              f"of both weigh alike, and fits the chosen terms in the file's units")
+        print(f"note: the {'positions' if factor > 1 else 'momenta'} spread about "
+              f"{max(factor, 1 / factor):g} times more than the "
+              f"{'momenta' if factor > 1 else 'positions'} (to the nearest power of ten): the "
+              f"search compares its candidates with the momenta multiplied by {factor:g}, so "
+              f"that the equations of both weigh alike, and fits the chosen terms in the "
+              f"file's units")
     if report["clean"]:
         print("note: the data look exact (noise below 0.001% of every variable): finite "
               "differences, Simpson's pairs and the weak form only")

@@ -28,8 +28,8 @@ law without being physics, and for what the folds need:
    differences, :func:`~sk_hamiltonian._trajectory_fit.difference_noise_model`)
    below :data:`CLEAN_LEVEL` of every variable's spread marks them as exact.
 5. **Units.** Where the momenta's spread and the positions' differ by more
-   than :data:`~._units.BALANCE_BOUND`, the momenta are multiplied by one
-   factor that brings them together (:mod:`._units`), so that the rows of
+   than :data:`~._units.BALANCE_BOUND`, the momenta are multiplied by the
+   power of ten nearest their ratio (:mod:`._units`), so that the rows of
    both kinds weigh alike in the candidates' misfits.
 
 Everything left out is named, as in the user's ``X``, in an

@@ -28,7 +28,6 @@ from ._finalists import decide
 from ._prepare import prepare
 from ._refine import refine_chosen
 from ._results import cv_results, describe_layout
-from ._units import refit_in_user_units, scaled_domain
 from ._screen import (
     PER_COORDINATE_DOF,
     angle_like,
@@ -48,6 +47,7 @@ from ._search_checks import (
     check_values,
 )
 from ._selection import SELECTIONS
+from ._units import refit_in_user_units, scaled_domain
 
 
 class HamiltonianSearchCV(BaseEstimator):
