@@ -336,7 +336,7 @@ def run(name, shape, noise, seed, hand=False, split=None, stamps=False, units=(1
     if dt != scene_dt:
         folds += f"dt {dt:g}  "
     if tuple(units) != (1.0, 1.0):
-        factor = search.preparation_["momentum_scale"]
+        factor = search.preparation_.get("momentum_scale", 1.0)  # 1.0 before it existed
         folds += f"units p*{units[0]:g} q*{units[1]:g} (momenta x {factor:.3g})  "
     factors = np.repeat(np.asarray(units, dtype=float), X.shape[-1] // 2 if not stamps
                         else (X.shape[-1] - 1) // 2)
