@@ -381,3 +381,38 @@ def test_a_regressor_fitted_on_trajectories_names_the_readings_it_left_out():
                                             r"By trajectory: \{7: \[0\], 21: \[40\]\}"):
         pipe.fit(X)
     assert pipe[-1].trajectory_fit_status_ == "refined"
+
+
+def test_the_information_of_a_candidate_whose_flow_explodes_is_finite():
+    # A finalist judged on coarse records (the quartic spring's one record
+    # sampled every 0.5) exploded along one trajectory: its sensitivities to
+    # the initial state grew to 1e13, their Gram block singular to round-off,
+    # and the search stopped on numpy's LinAlgError.
+    from types import SimpleNamespace
+
+    from sk_hamiltonian._trajectory_fit.covariance import equilibrated_inverse, information
+    from sk_hamiltonian._trajectory_fit.solver import _Group
+
+    rng = np.random.default_rng(0)
+    Y = rng.standard_normal((2, 5, 2))
+    group = _Group(Y, np.ones((2, 4)))
+    X = Y + 0.01 * rng.standard_normal(Y.shape)
+    SX = np.tile(np.eye(2), (2, 5, 1, 1))
+    SX[1] = np.array([[1.0, 2.0], [1.0, 2.0]]) * 1e13  # rank one: its block is singular
+    ST = rng.standard_normal((2, 5, 2, 3))
+    model = SimpleNamespace(wrap_difference=lambda D: D)
+    S, scores = information(model, [group], [(X, SX, ST)])
+    assert np.all(np.isfinite(S)) and np.all(np.isfinite(scores[0]))
+    # The well-posed trajectory's part as numpy.linalg.solve gives it.
+    A, B = SX[0].reshape(10, 2), ST[0].reshape(10, 3)
+    alone, _ = information(model, [_Group(Y[:1], np.ones((1, 4)))], [(X[:1], SX[:1], ST[:1])])
+    np.testing.assert_allclose(alone, B.T @ B - B.T @ A @ np.linalg.solve(A.T @ A, A.T @ B))
+    # Scaled to a unit diagonal, the inverse of coefficients twenty orders
+    # apart keeps every direction.
+    D = np.diag([1e-20, 1.0, 1e20])
+    core = np.array([[2.0, 0.5, 0.1], [0.5, 1.0, 0.2], [0.1, 0.2, 1.5]])
+    M = D @ core @ D
+    np.testing.assert_allclose(D @ equilibrated_inverse(M) @ D, np.linalg.inv(core),
+                               rtol=1e-10, atol=1e-12)
+    # (A plain pseudo-inverse cuts the small direction off: a variance of zero.)
+    assert abs((D @ np.linalg.pinv(M) @ D)[0, 0]) < 1e-6

@@ -36,7 +36,13 @@ def information(model, groups, runs):
         B = (ST * g.W[..., None]).reshape(n, n_times * d, k)
         AA = np.einsum("nri,nrj->nij", A, A)
         AB = np.einsum("nri,nrj->nij", A, B)
-        AA_inv_AB = np.linalg.solve(AA, AB)
+        try:
+            AA_inv_AB = np.linalg.solve(AA, AB)
+        except np.linalg.LinAlgError:
+            # A candidate whose flow explodes along a trajectory (sensitivities of
+            # 1e13, their block singular to round-off) is judged, not fitted on:
+            # its information is the pseudo-inverse's, and its misfit loses.
+            AA_inv_AB = np.linalg.pinv(AA) @ AB
         S += np.einsum("nri,nrj->ij", B, B) - np.einsum("nji,njk->ik", AB, AA_inv_AB)
         scores.append(np.einsum("nri,nr->ni", B, r)
                       - np.einsum("nji,nj->ni", AA_inv_AB, np.einsum("nri,nr->ni", A, r)))
