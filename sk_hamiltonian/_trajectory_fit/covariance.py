@@ -59,10 +59,20 @@ def equilibrated_inverse(information):
     and reports a variance of zero there. Scaled, it sees their correlations
     only, which do not depend on the units.
     """
-    diagonal = np.diag(information)
-    scale = np.where(diagonal > 0, 1 / np.sqrt(np.where(diagonal > 0, diagonal, 1.0)), 1.0)
+    scale = unit_diagonal_scale(information)
     outer = np.outer(scale, scale)
     return np.linalg.pinv(information * outer) * outer
+
+
+def unit_diagonal_scale(matrix):
+    """``1 / sqrt(diag(matrix))`` (1 where the diagonal is not positive).
+
+    ``D matrix D``, with ``D`` this diagonal, has a unit diagonal: solved or
+    inverted so, a symmetric matrix whose entries span many orders of
+    magnitude keeps its small directions.
+    """
+    diagonal = np.diag(matrix)
+    return 1 / np.sqrt(np.where(diagonal > 0, diagonal, 1.0))
 
 
 def sandwich_covariance(information, scores, clusters):

@@ -36,7 +36,7 @@ large error of phase, and the cost of the whole record has many minima.
 import numpy as np
 
 from .._structure import apply_structure
-from .covariance import information
+from .covariance import information, unit_diagonal_scale
 from .noise import mean_variance, noise_weights, residual_noise_model
 from .outliers import isolated_outliers
 
@@ -554,8 +554,7 @@ def _gauss_newton_step(model, groups, runs, lam, fixed=False):
     # differ by twenty orders of magnitude (the stiff spring's p^2 0.002 with
     # momenta in thousandths, beside its q^4 1835), and unscaled, the
     # least-squares solve cut the small directions off as round-off.
-    diagonal = np.diag(S)
-    scale = 1 / np.sqrt(np.where(diagonal > 0, diagonal, 1.0))
+    scale = unit_diagonal_scale(S)
     step_theta = scale * np.linalg.lstsq(S * np.outer(scale, scale), scale * rhs, rcond=None)[0]
     steps_x0 = [np.einsum("nij,nj->ni", AA_inv, Ar) - AA_inv_AB @ step_theta
                 for AA_inv, AA_inv_AB, Ar in parts]
